@@ -179,7 +179,7 @@ OUTPUTS = (
     "force_o", "force_base", "alpha", "beta", "gamma", "k_pxo", "k_px", "k_py", "k_max", "k_min",
     "k_p", "a", "eig_re", "eig_im", "tr", "det", "disc", "margin", "stable", "gamma_margin",
     "stiffness", "compliance", "deflection", "omega2", "tool_axis_angle", "plane", "tcp_position",
-    "tool_axis", "feed_per_tooth",
+    "tool_axis", "feed_per_tooth", "principal_values", "principal_directions",
 )
 
 
@@ -215,6 +215,7 @@ def _build_outputs(robot: Robot, process_model: str, mass_model: str) -> tuple[l
     c_tt = stiffness.translational_compliance(jac, p_("joint_stiffness"), k_c)
     k_t = stiffness.translational_stiffness(c_tt)
     deflection = c_tt @ f_base
+    principal_values, principal_directions = stiffness.principal_stiffness(k_t)
 
     # The 2-DOF plane.
     if process_model == "thesis":
@@ -266,7 +267,8 @@ def _build_outputs(robot: Robot, process_model: str, mass_model: str) -> tuple[l
         "margin": margin, "stable": stable, "gamma_margin": gamma_margin, "stiffness": k_t,
         "compliance": c_tt, "deflection": deflection, "omega2": omega2,
         "tool_axis_angle": tool_axis_angle, "plane": plane, "tcp_position": tcp_pos,
-        "tool_axis": tool_axis, "feed_per_tooth": c,
+        "tool_axis": tool_axis, "feed_per_tooth": c, "principal_values": principal_values,
+        "principal_directions": principal_directions,
     }
     return [q, cut, feed, params], values
 

@@ -75,6 +75,8 @@ class PointAnalysis:
     plane: np.ndarray
     tcp_position: np.ndarray
     tool_axis: np.ndarray
+    principal_values: np.ndarray
+    principal_directions: np.ndarray
     jacobian_sigma_min: float
     warnings: tuple[str, ...]
 
@@ -208,6 +210,8 @@ class PointModel:
             deflection=v["deflection"].reshape(3), natural_frequencies=freqs,
             tool_axis_angle=axis_angle, plane=v["plane"].reshape(3, 2),
             tcp_position=v["tcp_position"].reshape(3), tool_axis=v["tool_axis"].reshape(3),
+            principal_values=v["principal_values"].reshape(3),
+            principal_directions=v["principal_directions"].reshape(3, 3),
             jacobian_sigma_min=sigma, warnings=tuple(warnings))
 
     def analyze(self, q: np.ndarray, cut: Cut, feed: float) -> PointAnalysis:

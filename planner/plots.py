@@ -1,0 +1,89 @@
+"""Plots for people. Matplotlib with the non-interactive Agg backend; files written atomically."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from models.point import StabilityCharacteristic
+from planner._atomic import atomic_path
+
+__all__ = ["plot_characteristic"]
+
+
+def _figure(**kw):
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    return plt, plt.figure(**kw)
+
+
+def _spans(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Index runs [i, j] where ``mask`` is True."""
+    runs, start = [], None
+    for i, m in enumerate(mask):
+        if m and start is None:
+            start = i
+        if not m and start is not None:
+            runs.append((start, i - 1))
+            start = None
+    if start is not None:
+        runs.append((start, len(mask) - 1))
+    return runs
+
+
+def plot_characteristic(ch: StabilityCharacteristic, path: str | os.PathLike,
+                        title: str = "Stability characteristic") -> Path:
+    """γ and margin against feed, unstable regions shaded, force limit marked. Writes a PNG.
+
+    Args:
+        ch: the characteristic (SI).
+        path: output PNG path.
+        title: plot title.
+    """
+    plt, fig = _figure(figsize=(8.0, 6.0), dpi=110)
+    feed_mm_s = ch.feeds * 1e3
+    ax_g, ax_m = fig.subplots(2, 1, sharex=True)
+    gamma_window = ch.points[0].criterion == "gamma_window" if ch.points else False
+    ax_g.plot(feed_mm_s, np.degrees(ch.gamma), color="tab:blue", lw=2, label="γ")
+    ax_g.set_ylabel("γ: force → K_max direction [deg]")
+    margin = np.degrees(ch.margin) if gamma_window else ch.margin
+    ax_m.plot(feed_mm_s, margin, color="tab:green", lw=2, label="stability margin")
+    ax_m.axhline(0.0, color="k", lw=0.8)
+    ax_m.set_ylabel("margin [deg]" if gamma_window else "margin [N/m]")
+    ax_m.set_xlabel("feed [mm/s]")
+    half = (feed_mm_s[1] - feed_mm_s[0]) / 2 if feed_mm_s.size > 1 else 0.5
+    for ax in (ax_g, ax_m):
+        for i, j in _spans(~ch.stable):
+            ax.axvspan(feed_mm_s[i] - half, feed_mm_s[j] + half, color="tab:red", alpha=0.15,
+                       lw=0, label="unstable" if ax is ax_m and i == _spans(~ch.stable)[0][0]
+                       else None)
+        for i, j in _spans(ch.force > ch.force_limit):
+            ax.axvspan(feed_mm_s[i] - half, feed_mm_s[j] + half, color="tab:orange", alpha=0.15,
+                       lw=0, hatch="//")
+        ax.grid(alpha=0.3)
+    over = np.flatnonzero(ch.force > ch.force_limit)
+    if over.size:
+        ax_m.axvline(feed_mm_s[over[0]], color="tab:orange", ls="--",
+                     label=f"force limit {ch.force_limit:.0f} N")
+    if ch.feed_limit > 0:
+        ax_m.axvline(ch.feed_limit * 1e3, color="k", ls=":",
+                     label=f"feed limit {ch.feed_limit * 1e3:.2f} mm/s ({ch.binding})")
+    ax_f = ax_m.twinx()
+    ax_f.plot(feed_mm_s, ch.force, color="tab:orange", lw=1, alpha=0.7)
+    ax_f.axhline(ch.force_limit, color="tab:orange", lw=0.8, ls="--")
+    ax_f.set_ylabel("|F| [N]", color="tab:orange")
+    ax_m.legend(loc="best", fontsize=8)
+    p = ch.points[0] if ch.points else None
+    if p is not None:
+        title += f"  ({p.process_model} process model, {p.mass_model} mass, {p.criterion})"
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, format="png")
+    plt.close(fig)
+    return Path(path)

@@ -1,0 +1,112 @@
+"""How a point analysis is shown: JSON for scripts (SI, angles in degrees), a table for people."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from models.point import PointAnalysis, StabilityCharacteristic
+
+__all__ = ["analysis_json", "analysis_table", "characteristic_table"]
+
+
+def _list(a: np.ndarray) -> list:
+    return np.asarray(a, float).round(12).tolist()
+
+
+def analysis_json(a: PointAnalysis, cct: bool) -> dict[str, Any]:
+    """The ``cctmill analyze --json`` object. Lengths/forces/stiffnesses SI; angles in degrees."""
+    out: dict[str, Any] = {
+        "process_model": a.process_model,
+        "mass_model": a.mass_model,
+        "criterion": a.criterion,
+        "cct": cct,
+        "feed_m_s": a.feed,
+        "feed_per_tooth_m": a.feed_per_tooth,
+        "force_N": _list(a.force_o),
+        "force_base_N": _list(a.force_base),
+        "force_resultant_N": a.force,
+        "alpha_deg": float(np.degrees(a.alpha)),
+        "beta_deg": float(np.degrees(a.beta)),
+        "gamma_deg": float(np.degrees(a.gamma)),
+        "k_pxo_N_per_m": a.k_pxo,
+        "k_px_N_per_m": a.k_px,
+        "k_py_N_per_m": a.k_py,
+        "k_max_N_per_m": a.k_max,
+        "k_min_N_per_m": a.k_min,
+        "k_p_N_per_m": _list(a.k_p),
+        "plane_axes_base": _list(a.plane.T),
+        "A_N_per_m": _list(a.a),
+        "eig_A": _list(a.eig),
+        "stable": bool(a.stable),
+        "stable_eigen": bool(a.stable_eigen),
+        "margin_N_per_m": a.margin,
+        "gamma_window_margin_deg": float(np.degrees(a.gamma_margin)),
+        "stiffness_N_per_m": _list(a.stiffness),
+        "compliance_m_per_N": _list(a.compliance),
+        "principal_stiffness_N_per_m": _list(a.principal_values),
+        "principal_directions_base": _list(a.principal_directions.T),
+        "deflection_m": _list(a.deflection),
+        "tcp_position_m": _list(a.tcp_position),
+        "tool_axis_base": _list(a.tool_axis),
+        "tool_axis_angle_deg": float(np.degrees(a.tool_axis_angle)),
+        "jacobian_sigma_min_m": a.jacobian_sigma_min,
+        "warnings": list(a.warnings),
+    }
+    if a.natural_frequencies is not None:
+        out["natural_frequencies_hz"] = _list(a.natural_frequencies)
+    return out
+
+
+def analysis_table(a: PointAnalysis, cct: bool) -> str:
+    """A readable table of one analysis (engineering units)."""
+    f = a.force_o
+    lines = [
+        f"model            process {a.process_model}, mass {a.mass_model}, criterion "
+        f"{a.criterion}, stiffness {'CCT' if cct else 'conventional'}",
+        f"feed             {a.feed * 1e3:.3f} mm/s  ({a.feed_per_tooth * 1e6:.2f} um/tooth)",
+        f"force (Xo,Yo,Zo) {f[0]:8.2f} {f[1]:8.2f} {f[2]:8.2f} N   |F| = {a.force:.2f} N",
+        f"force (base)     {a.force_base[0]:8.2f} {a.force_base[1]:8.2f} {a.force_base[2]:8.2f} N",
+        f"alpha, beta      {np.degrees(a.alpha):8.2f} {np.degrees(a.beta):8.2f} deg",
+        f"gamma            {np.degrees(a.gamma):8.2f} deg   (force to K_max direction)",
+        f"K_px, K_py       {a.k_px:10.4g} {a.k_py:10.4g} N/m",
+        f"K_max, K_min     {a.k_max:10.4g} {a.k_min:10.4g} N/m",
+        f"K_p              [[{a.k_p[0, 0]:.4g}, {a.k_p[0, 1]:.4g}], "
+        f"[{a.k_p[1, 0]:.4g}, {a.k_p[1, 1]:.4g}]] N/m",
+        "eig(A)           " + ", ".join(
+            f"{re:.4g}{im:+.4g}i" if im else f"{re:.4g}" for re, im in a.eig) + " N/m",
+        f"margin           {a.margin:10.4g} N/m  -> {'STABLE' if a.stable else 'UNSTABLE'}",
+        f"deflection       {a.deflection[0] * 1e3:8.4f} {a.deflection[1] * 1e3:8.4f} "
+        f"{a.deflection[2] * 1e3:8.4f} mm  (|d| = {np.linalg.norm(a.deflection) * 1e3:.4f} mm)",
+        f"TCP (base)       {a.tcp_position[0] * 1e3:9.2f} {a.tcp_position[1] * 1e3:9.2f} "
+        f"{a.tcp_position[2] * 1e3:9.2f} mm",
+    ]
+    if a.natural_frequencies is not None:
+        nf = a.natural_frequencies
+        lines.append(f"2-DOF modes      {nf[0]:.2f} Hz (K_max), {nf[1]:.2f} Hz (K_min)")
+    pv, pd = a.principal_values, a.principal_directions
+    lines.append("principal K_t        " + "   ".join(
+        f"{pv[i]:.4g} N/m along ({pd[0, i]:+.3f},{pd[1, i]:+.3f},{pd[2, i]:+.3f})"
+        for i in range(3)))
+    k = a.stiffness
+    lines.append("K_t (base, N/m)  " + "\n                 ".join(
+        " ".join(f"{v:11.4g}" for v in row) for row in k))
+    lines += [f"warning: {w}" for w in a.warnings]
+    return "\n".join(lines)
+
+
+def characteristic_table(ch: StabilityCharacteristic) -> str:
+    """One row per feed: feed, |F|, γ, margin, verdict; then the point's feed limit."""
+    unit = "deg" if ch.points and ch.points[0].criterion == "gamma_window" else "N/m"
+    rows = [f"{'feed mm/s':>10} {'|F| N':>8} {'gamma deg':>10} {'margin ' + unit:>14}  verdict"]
+    for p, m in zip(ch.points, ch.margin, strict=True):
+        mm = np.degrees(m) if unit == "deg" else m
+        verdict = "stable" if p.stable else "UNSTABLE"
+        if p.force > ch.force_limit:
+            verdict += ", over force limit"
+        rows.append(f"{p.feed * 1e3:10.3f} {p.force:8.2f} {np.degrees(p.gamma):10.3f} "
+                    f"{mm:14.5g}  {verdict}")
+    rows.append(f"feed limit {ch.feed_limit * 1e3:.3f} mm/s, bound by {ch.binding} "
+                f"(force limit {ch.force_limit:.0f} N)")
+    return "\n".join(rows)
