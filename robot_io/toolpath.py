@@ -1,0 +1,274 @@
+"""The plain move model every toolpath reader produces, and its summary.
+
+A :class:`Toolpath` is what a CAM program *means* on the machine that would run it: absolute end
+points in the program's workpiece frame (SI metres), arcs with their centre and plane normal, the tool
+axis where the program gives one, the feed the machine would use, and for every move the file, line
+and column it came from. Readers (``robot_io.gcode``, ``robot_io.apt``, ``robot_io.krl_reader``)
+resolve everything modal (units, absolute/incremental, planes, feed modes) so that nothing downstream
+has to know which dialect the file spoke.
+
+This module is ``robot_io``'s own: it does not import ``planner``.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from models.errors import CctmillError
+
+__all__ = [
+    "Move",
+    "MoveKind",
+    "SourceRef",
+    "Toolpath",
+    "ToolpathError",
+    "ToolpathReader",
+    "ToolpathWarning",
+    "arc_geometry",
+    "summarize",
+]
+
+
+class ToolpathError(CctmillError):
+    """A toolpath file cannot be read as written.
+
+    Attributes:
+        file: path of the file.
+        line: 1-based line number.
+        column: 1-based column of the offending word (0 when the whole line is meant).
+        reason: the problem and how to fix it, without the location.
+    """
+
+    def __init__(self, file: str, line: int, column: int, reason: str) -> None:
+        self.file = file
+        self.line = line
+        self.column = column
+        self.reason = reason
+        super().__init__(f"{file}:{line}:{column}: {reason}")
+
+
+@dataclass(frozen=True)
+class SourceRef:
+    """Where a move or warning came from: file, 1-based line and column."""
+
+    file: str
+    line: int
+    column: int = 0
+
+    def __str__(self) -> str:
+        return f"{self.file}:{self.line}:{self.column}"
+
+
+@dataclass(frozen=True)
+class ToolpathWarning:
+    """A problem that lenient reading (or a harmless oddity in strict reading) went past.
+
+    Attributes:
+        source: where.
+        message: what, and what was done about it.
+        category: short key for counting (e.g. ``"unknown_record"``, ``"ignored_word"``).
+    """
+
+    source: SourceRef
+    message: str
+    category: str
+
+    def __str__(self) -> str:
+        return f"{self.source}: {self.message}"
+
+
+class MoveKind(enum.Enum):
+    """Kind of motion of one move."""
+
+    RAPID = "rapid"        #: positioning at the machine's rapid speed (G0, RAPID, PTP)
+    LINEAR = "linear"      #: straight feed move (G1, GOTO, LIN)
+    ARC_CW = "arc_cw"      #: clockwise about ``Move.normal`` (G2 in its plane; CIRC)
+    ARC_CCW = "arc_ccw"    #: counter-clockwise about ``Move.normal`` (G3)
+
+
+@dataclass(frozen=True)
+class Move:
+    """One move, fully resolved. SI; workpiece frame of the program.
+
+    Attributes:
+        kind: the motion kind.
+        start: start point of the TCP [m], shape (3,); ``None`` when the machine position before the
+            first move (or after a homing) is not known.
+        end: end point of the TCP (tool tip) [m], shape (3,).
+        feed: path speed [m/s] the machine would use for this move; ``None`` for rapids, or when the
+            program gives only a duration (inverse time) — then see ``duration``.
+        duration: move time [s] for inverse-time feed (G93), else ``None``.
+        center: arc centre [m], shape (3,), in the arc's start plane (arcs only).
+        normal: unit normal of the arc plane, shape (3,); the arc turns counter-clockwise about
+            ``normal`` for ``ARC_CCW`` and clockwise for ``ARC_CW`` (arcs only). For a helix the
+            axial travel is ``end - start`` projected on ``normal``.
+        turns: extra full turns of an arc (G-code ``P``), normally 0.
+        tool_axis: unit vector from the tool tip towards the spindle [-], shape (3,), when the
+            program gives one (5-axis, APT ``GOTO/x,y,z,i,j,k``), else ``None``.
+        spindle_rpm: spindle speed in force [rev/min], ``None`` if never set.
+        tool: tool number in force, ``None`` if never set.
+        source: file, line, column of the word or record that made this move.
+        extra: reader-specific extras (e.g. the raw rotary axis values ``{"A": rad, "C": rad}``).
+    """
+
+    kind: MoveKind
+    start: np.ndarray | None
+    end: np.ndarray
+    source: SourceRef
+    feed: float | None = None
+    duration: float | None = None
+    center: np.ndarray | None = None
+    normal: np.ndarray | None = None
+    turns: int = 0
+    tool_axis: np.ndarray | None = None
+    spindle_rpm: float | None = None
+    tool: int | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def is_arc(self) -> bool:
+        """True for ``ARC_CW`` and ``ARC_CCW``."""
+        return self.kind in (MoveKind.ARC_CW, MoveKind.ARC_CCW)
+
+    @property
+    def length(self) -> float:
+        """Path length of the tool tip [m] (helical arcs included); 0 when ``start`` is unknown."""
+        if self.start is None:
+            return 0.0
+        if not self.is_arc:
+            return float(np.linalg.norm(self.end - self.start))
+        geo = arc_geometry(self)
+        return float(math.hypot(geo["radius"] * abs(geo["sweep"]), geo["axial"]))
+
+
+@dataclass
+class Toolpath:
+    """A whole program as moves, with what reading it noticed.
+
+    Attributes:
+        file: the file read.
+        format: ``"gcode"``, ``"apt"`` or ``"krl"``.
+        units: units the file was written in (``"mm"`` or ``"inch"``); moves are in metres.
+        moves: the moves, in program order.
+        warnings: everything noticed but not fatal.
+        skipped: count of records/words skipped, by category (nothing is dropped silently).
+        meta: reader-specific facts (e.g. ``{"program": "1117_wall", "rotary_kinematics": ...}``).
+    """
+
+    file: str
+    format: str
+    units: str
+    moves: list[Move] = field(default_factory=list)
+    warnings: list[ToolpathWarning] = field(default_factory=list)
+    skipped: Counter = field(default_factory=Counter)
+    meta: dict[str, Any] = field(default_factory=dict)
+
+
+class ToolpathReader(Protocol):
+    """What every reader module offers."""
+
+    def read(self, path: str, strict: bool = True, **options: Any) -> Toolpath:
+        """Read ``path`` into a :class:`Toolpath`; strict mode raises :class:`ToolpathError`."""
+        ...
+
+
+#: Radii of the start and end point about an arc's centre may differ by this much [m] before
+#: the arc is called inconsistent (LinuxCNC uses 0.002 mm absolute / 0.1 % relative; we allow
+#: the larger of 2 µm and 0.1 % of the radius, and readers may widen it with an option).
+ARC_RADIUS_TOL = 2e-6
+ARC_RADIUS_RTOL = 1e-3
+
+
+def arc_geometry(move: Move) -> dict[str, Any]:
+    """Radius [m], signed sweep [rad] about ``normal``, axial travel [m] and in-plane basis of an arc.
+
+    A full circle (end = start in the plane) sweeps 2π. ``turns`` adds full turns.
+    """
+    if move.start is None or move.center is None or move.normal is None:
+        raise ValueError("arc_geometry needs an arc with start, center and normal")
+    n = move.normal / np.linalg.norm(move.normal)
+    rs = move.start - move.center
+    rs = rs - (rs @ n) * n
+    re = move.end - move.center
+    axial = float((re @ n) - ((move.start - move.center) @ n))
+    re = re - (re @ n) * n
+    radius = float(np.linalg.norm(rs))
+    u = rs / radius if radius > 0 else np.zeros(3)
+    v = np.cross(n, u)
+    ang = math.atan2(float(re @ v), float(re @ u))  # CCW angle from start to end, (-π, π]
+    ccw = move.kind == MoveKind.ARC_CCW
+    if ccw:
+        sweep = ang if ang > 1e-12 else ang + 2 * math.pi
+    else:
+        sweep = ang if ang < -1e-12 else ang - 2 * math.pi
+    sweep += (2 * math.pi if ccw else -2 * math.pi) * move.turns
+    return {"radius": radius, "sweep": sweep, "axial": axial, "u": u, "v": v, "normal": n,
+            "end_radius": float(np.linalg.norm(re))}
+
+
+def _arc_extremes(move: Move) -> np.ndarray:
+    """Points of an arc that bound its box: ends plus the axis-extreme points inside the sweep."""
+    geo = arc_geometry(move)
+    pts = [move.start, move.end]
+    r, sweep, u, v, n = geo["radius"], geo["sweep"], geo["u"], geo["v"], geo["normal"]
+    # x(θ) = c + r (cos θ u + sin θ v) + axial·θ/sweep n; extreme of coordinate k where
+    # tan θ = v_k / u_k (ignoring the linear axial term, whose extremes are the end points).
+    for k in range(3):
+        base = math.atan2(v[k], u[k])
+        for cand in (base, base + math.pi):
+            for shift in range(-int(abs(sweep) // (2 * math.pi)) - 1,
+                               int(abs(sweep) // (2 * math.pi)) + 2):
+                th = cand + 2 * math.pi * shift
+                if (0 < th < sweep) or (sweep < th < 0):
+                    frac = th / sweep
+                    pts.append(move.center + r * (math.cos(th) * u + math.sin(th) * v)
+                               + ((move.start - move.center) @ n) * n + geo["axial"] * frac * n)
+    return np.array(pts)
+
+
+def summarize(tp: Toolpath) -> dict[str, Any]:
+    """The ``cctmill inspect`` summary of a toolpath (SI, feeds in mm/min as named).
+
+    ``bbox_m`` bounds every known tool-tip position: every move's end point, and for arcs the
+    extreme points inside the sweep (not only the chord ends). ``length_m`` is the tool-tip path
+    length of all moves with a known start (rapids included); ``cutting_length_m`` excludes rapids.
+    """
+    moves = tp.moves
+    rapids = sum(1 for m in moves if m.kind == MoveKind.RAPID)
+    arcs = sum(1 for m in moves if m.is_arc)
+    length = sum(m.length for m in moves)
+    cutting = sum(m.length for m in moves if m.kind != MoveKind.RAPID)
+    pts = []
+    for m in moves:
+        if m.is_arc and m.start is not None:
+            pts.append(_arc_extremes(m))
+        else:
+            pts.append(m.end.reshape(1, 3))
+    if pts:
+        allp = np.vstack(pts)
+        bbox = [allp.min(axis=0).tolist(), allp.max(axis=0).tolist()]
+    else:
+        bbox = None
+    feeds = [m.feed for m in moves if m.kind != MoveKind.RAPID and m.feed is not None]
+    return {
+        "file": tp.file,
+        "format": tp.format,
+        "units": tp.units,
+        "moves": len(moves),
+        "rapids": rapids,
+        "arcs": arcs,
+        "length_m": length,
+        "cutting_length_m": cutting,
+        "bbox_m": bbox,
+        "feed_mm_min": ({"min": min(feeds) * 60e3, "max": max(feeds) * 60e3} if feeds else None),
+        "inverse_time_moves": sum(1 for m in moves if m.duration is not None),
+        "has_tool_axis": any(m.tool_axis is not None for m in moves),
+        "skipped": dict(tp.skipped),
+        "warnings": [str(w) for w in tp.warnings],
+    }
