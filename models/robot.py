@@ -198,11 +198,14 @@ class Robot:
 
     # ------------------------------------------------------------------ pinocchio (numeric)
     def pin_model(self, tcp: np.ndarray | None = None, spindle_mass: float | None = None,
-                  spindle_com: np.ndarray | None = None) -> tuple[pin.Model, int]:
+                  spindle_com: np.ndarray | None = None,
+                  tcp_rotation: np.ndarray | None = None) -> tuple[pin.Model, int]:
         """A copy of the pinocchio model with the spindle mass on the last body and a ``tcp`` frame.
 
         Args:
             tcp: TCP offset in the flange frame [m], shape (3,); default zero.
+            tcp_rotation: TCP orientation in the flange frame, shape (3, 3); default identity
+                (tool axis = flange x).
             spindle_mass: spindle point mass [kg]; default from the data file.
             spindle_com: spindle centre of mass in the flange frame [m], shape (3,).
 
@@ -218,7 +221,8 @@ class Robot:
             com_joint = flange.placement.act(com)
             model.inertias[joint] = model.inertias[joint] + pin.Inertia(
                 m, com_joint, np.zeros((3, 3)))
-        offset = pin.SE3(np.eye(3), np.zeros(3) if tcp is None else np.asarray(tcp, float))
+        offset = pin.SE3(np.eye(3) if tcp_rotation is None else np.asarray(tcp_rotation, float),
+                         np.zeros(3) if tcp is None else np.asarray(tcp, float))
         fid = model.addFrame(pin.Frame("tcp", joint, flange.placement * offset,
                                        pin.FrameType.OP_FRAME))
         return model, fid

@@ -10,7 +10,7 @@ import numpy as np
 from models.point import StabilityCharacteristic
 from planner._atomic import atomic_path
 
-__all__ = ["plot_characteristic"]
+__all__ = ["plot_characteristic", "plot_path_kinematics"]
 
 
 def _figure(**kw):
@@ -81,6 +81,59 @@ def plot_characteristic(ch: StabilityCharacteristic, path: str | os.PathLike,
     p = ch.points[0] if ch.points else None
     if p is not None:
         title += f"  ({p.process_model} process model, {p.mass_model} mass, {p.criterion})"
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, format="png")
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_path_kinematics(s: np.ndarray, q: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                         joint_names: tuple[str, ...], reachable: np.ndarray, a_e: np.ndarray,
+                         a_p: np.ndarray, mode: np.ndarray, path: str | os.PathLike,
+                         title: str = "Path kinematics and engagement") -> Path:
+    """Joint angles (against their limits) and engagement along the path. Writes a PNG.
+
+    Args:
+        s: arc length [m], shape (n,).
+        q: joints [rad], shape (n, nq).
+        lower, upper: joint limits [rad], shape (nq,).
+        joint_names: names for the legend.
+        reachable: shape (n,), bool (unreachable stretches are shaded red).
+        a_e, a_p: radial/axial depth [m], shape (n,).
+        mode: milling mode codes (0 up, 1 down, 2 slot, −1 air), shape (n,).
+        path: output PNG.
+    """
+    plt, fig = _figure(figsize=(10.0, 7.5), dpi=100)
+    ax_q, ax_e = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 2]})
+    frac = (q - lower) / (upper - lower)
+    for i, name in enumerate(joint_names):
+        ax_q.plot(s, frac[:, i] * 100.0, lw=1.5,
+                  label=f"{name} [{np.degrees(q[:, i]).min():.0f}, "
+                        f"{np.degrees(q[:, i]).max():.0f}] deg")
+    ax_q.axhspan(90, 100, color="tab:red", alpha=0.08)
+    ax_q.axhspan(0, 10, color="tab:red", alpha=0.08)
+    ax_q.set_ylim(-2, 102)
+    ax_q.set_ylabel("joint position in its range [%]\n(0 = lower, 100 = upper limit)")
+    ax_q.legend(loc="upper left", fontsize=7, ncol=3)
+    colors = {-1: "white", 0: "tab:blue", 1: "tab:green", 2: "tab:purple"}
+    labels = {-1: "air", 0: "up", 1: "down", 2: "slot"}
+    for ax in (ax_q, ax_e):
+        for i, j in _spans(~reachable):
+            ax.axvspan(s[i], s[j], color="tab:red", alpha=0.3, lw=0)
+        ax.grid(alpha=0.3)
+    seen = set()
+    for code in (0, 1, 2):
+        for i, j in _spans(mode == code):
+            ax_e.axvspan(s[i], s[j], color=colors[code], alpha=0.12, lw=0,
+                         label=None if code in seen else labels[code])
+            seen.add(code)
+    ax_e.plot(s, a_e * 1e3, color="k", lw=1.5, label="a_e (radial)")
+    ax_e.plot(s, a_p * 1e3, color="tab:orange", lw=1.5, label="a_p (axial)")
+    ax_e.set_ylabel("depth of cut [mm]")
+    ax_e.set_xlabel("path length s [m]")
+    ax_e.legend(loc="upper left", fontsize=7, ncol=5)
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     with atomic_path(path, suffix=".png") as tmp:

@@ -1,0 +1,314 @@
+"""The job file: one TOML document describing the cell, the tool, the cut and the limits.
+
+Validated with pydantic; every problem is reported in the user's terms — the table and key, what is
+wrong, how to fix it — and all problems at once. Units are part of the key names
+(``feed_max_mm_s``, ``tcp_mm``, ``base_abc_deg``); a key with a different unit suffix is an unknown
+key and the message suggests the known one. Everything is converted to SI by :meth:`Job.cell`
+and friends, never inside the models.
+
+Example (see ``planner/data/demo/demo_job.toml`` for a complete one)::
+
+    [job]
+    name = "wall"
+    toolpath = ["wall.nc"]          # relative to this file
+
+    [cell]
+    robot = "kr210_r2700_extra"
+    base_mm = [1500.0, -300.0, 400.0]   # $BASE: workpiece frame in the robot base
+    base_abc_deg = [0.0, 0.0, 0.0]
+    tcp_mm = [300.0, 0.0, 0.0]          # $TOOL: TCP in the flange frame
+    tcp_abc_deg = [0.0, 0.0, 0.0]
+
+    [tool]
+    name = "em25_2f"
+
+    [limits]
+    force_max_n = 300.0
+"""
+
+from __future__ import annotations
+
+import difflib
+import tomllib
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from models.errors import CctmillError
+from models.robot import DEFAULT_ROBOT
+
+__all__ = [
+    "CellSection",
+    "EngagementSection",
+    "Job",
+    "JobError",
+    "JobSection",
+    "KinematicsSection",
+    "LimitsSection",
+    "ModelSection",
+    "PathSection",
+    "SpindleSection",
+    "StockSection",
+    "ToolSection",
+    "load_job",
+    "parse_job",
+]
+
+Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+Vec6 = Annotated[list[float], Field(min_length=6, max_length=6)]
+PosFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+
+
+class JobError(CctmillError):
+    """A job file is not valid.
+
+    Attributes:
+        file: the job file.
+        problems: one line per problem, ``[table] key: what is wrong; how to fix``.
+    """
+
+    def __init__(self, file: str, problems: list[str]) -> None:
+        self.file = file
+        self.problems = problems
+        if len(problems) == 1:
+            super().__init__(f"{file}: {problems[0]}")
+        else:
+            super().__init__(f"{file}: {len(problems)} problems:\n  " + "\n  ".join(problems))
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+class JobSection(_Section):
+    """``[job]``: name and toolpath files."""
+
+    name: str = "job"
+    toolpath: list[str] = Field(min_length=1)
+    strict: bool = True
+    rotary: Literal["none", "xyzac-trunnion"] | None = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _one_path(cls, data: Any) -> Any:
+        if isinstance(data, dict) and isinstance(data.get("toolpath"), str):
+            data = {**data, "toolpath": [data["toolpath"]]}
+        return data
+
+
+class CellSection(_Section):
+    """``[cell]``: robot, ``$BASE`` (workpiece frame in the robot base) and ``$TOOL`` (TCP)."""
+
+    robot: str = DEFAULT_ROBOT
+    base_mm: Vec3 = [0.0, 0.0, 0.0]
+    base_abc_deg: Vec3 = [0.0, 0.0, 0.0]
+    tcp_mm: Vec3 = [0.0, 0.0, 0.0]
+    tcp_abc_deg: Vec3 = [0.0, 0.0, 0.0]
+    joint_stiffness_scale: PosFloat = 1.0
+
+
+class ToolSection(_Section):
+    """``[tool]``: a tool data file, optionally overridden."""
+
+    name: str = "em25_2f"
+    diameter_mm: PosFloat | None = None
+    flutes: Annotated[int, Field(ge=1, le=12)] | None = None
+
+
+class SpindleSection(_Section):
+    """``[spindle]``: speed, mass and power."""
+
+    rpm: PosFloat = 1000.0
+    mass_kg: NonNegFloat | None = None
+    com_mm: Vec3 | None = None
+    power_max_kw: PosFloat = 10.0
+
+
+class LimitsSection(_Section):
+    """``[limits]``: what no section may exceed."""
+
+    force_max_n: PosFloat = 300.0
+    deflection_tol_mm: PosFloat = 0.1
+    feed_min_mm_s: PosFloat = 0.1
+    feed_max_mm_s: PosFloat = 50.0
+    feed_change_max_mm_s: PosFloat | None = None
+    margin_min_n_per_m: NonNegFloat = 0.0
+
+    @model_validator(mode="after")
+    def _feed_range(self) -> LimitsSection:
+        if self.feed_min_mm_s >= self.feed_max_mm_s:
+            raise ValueError("feed_min_mm_s must be below feed_max_mm_s")
+        return self
+
+
+class StockSection(_Section):
+    """``[engagement.stock]``: a prismatic stock in the workpiece frame."""
+
+    box_mm: Annotated[list[float], Field(min_length=4, max_length=4)] | None = None
+    outline_mm: list[Annotated[list[float], Field(min_length=2, max_length=2)]] | None = None
+    z_bottom_mm: float
+    z_top_mm: float
+
+    @model_validator(mode="after")
+    def _shape(self) -> StockSection:
+        if (self.box_mm is None) == (self.outline_mm is None):
+            raise ValueError("give exactly one of box_mm = [xmin, ymin, xmax, ymax] or outline_mm")
+        if self.box_mm is not None and not (self.box_mm[0] < self.box_mm[2]
+                                            and self.box_mm[1] < self.box_mm[3]):
+            raise ValueError("box_mm must be [xmin, ymin, xmax, ymax] with min < max")
+        if self.outline_mm is not None and len(self.outline_mm) < 3:
+            raise ValueError("outline_mm needs at least 3 points")
+        if not self.z_top_mm > self.z_bottom_mm:
+            raise ValueError("z_top_mm must be above z_bottom_mm")
+        return self
+
+
+class EngagementSection(_Section):
+    """``[engagement]``: per operation (``fixed``) or from a stock model (``stock``)."""
+
+    source: Literal["fixed", "stock"] = "fixed"
+    ae_mm: PosFloat | None = None
+    ap_mm: PosFloat | None = None
+    milling: Literal["up", "down", "slot"] = "down"
+    stock: StockSection | None = None
+
+    @model_validator(mode="after")
+    def _complete(self) -> EngagementSection:
+        if self.source == "fixed" and (self.ap_mm is None or
+                                       (self.ae_mm is None and self.milling != "slot")):
+            raise ValueError("fixed engagement needs ae_mm and ap_mm (slot: ap_mm only)")
+        if self.source == "stock" and self.stock is None:
+            raise ValueError("source = 'stock' needs an [engagement.stock] table")
+        return self
+
+
+class ModelSection(_Section):
+    """``[model]``: the physics choices and calibration knobs (SPEC §5)."""
+
+    process_model: Literal["thesis", "oriented"] = "thesis"
+    mass_model: Literal["isotropic", "robot"] = "isotropic"
+    chatter_criterion: Literal["eigen", "gamma_window"] = "eigen"
+    gamma_window_deg: Annotated[list[float], Field(min_length=2, max_length=2)] = [-90.0, 90.0]
+    process_gain: PosFloat = 1.0
+    cct: bool = True
+
+
+class PathSection(_Section):
+    """``[path]``: sampling of the toolpath."""
+
+    chord_tol_mm: PosFloat = 0.01
+    step_max_mm: PosFloat = 2.0
+
+
+class KinematicsSection(_Section):
+    """``[kinematics]``: inverse kinematics along the path."""
+
+    seed_joints_deg: Vec6 | None = None
+    tool_rotation: Literal["free", "fixed"] = "free"
+    tool_rotation_deg: float = 0.0
+    choose_for_stiffness: bool = False
+
+
+class Job(_Section):
+    """A whole job file, validated. ``folder`` is where relative paths resolve."""
+
+    job: JobSection
+    cell: CellSection = CellSection()
+    tool: ToolSection = ToolSection()
+    material: Annotated[str, Field(min_length=1)] = "al6061"
+    spindle: SpindleSection = SpindleSection()
+    limits: LimitsSection = LimitsSection()
+    engagement: EngagementSection
+    model: ModelSection = ModelSection()
+    path: PathSection = PathSection()
+    kinematics: KinematicsSection = KinematicsSection()
+    folder: str = "."
+
+    def toolpath_files(self) -> list[Path]:
+        """Absolute toolpath paths (relative ones resolve against the job file's folder)."""
+        return [(Path(self.folder) / p).resolve() for p in self.job.toolpath]
+
+    def base_frame(self) -> np.ndarray:
+        """``$BASE`` as a 4×4 homogeneous transform (workpiece → robot base), SI."""
+        return frame_matrix(self.cell.base_mm, self.cell.base_abc_deg)
+
+    def tool_frame(self) -> np.ndarray:
+        """``$TOOL`` as a 4×4 homogeneous transform (TCP → flange), SI."""
+        return frame_matrix(self.cell.tcp_mm, self.cell.tcp_abc_deg)
+
+
+def frame_matrix(xyz_mm, abc_deg) -> np.ndarray:
+    """4×4 transform from a KUKA frame: translation [mm] and A, B, C [deg], R = Rz(A)Ry(B)Rx(C)."""
+    a, b, c = np.radians(abc_deg)
+    rz = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+    ry = np.array([[np.cos(b), 0, np.sin(b)], [0, 1, 0], [-np.sin(b), 0, np.cos(b)]])
+    rx = np.array([[1, 0, 0], [0, np.cos(c), -np.sin(c)], [0, np.sin(c), np.cos(c)]])
+    t = np.eye(4)
+    t[:3, :3] = rz @ ry @ rx
+    t[:3, 3] = np.asarray(xyz_mm, float) * 1e-3
+    return t
+
+
+_MODELS = {"job": JobSection, "cell": CellSection, "tool": ToolSection,
+           "spindle": SpindleSection, "limits": LimitsSection, "engagement": EngagementSection,
+           "model": ModelSection, "path": PathSection, "kinematics": KinematicsSection,
+           "stock": StockSection}
+
+
+def _known_keys(loc: tuple) -> list[str]:
+    """Keys allowed at the table that contains ``loc[-1]``."""
+    if len(loc) == 1:
+        return [k for k in Job.model_fields if k != "folder"]
+    table = str(loc[-2])
+    model = _MODELS.get(table)
+    return list(model.model_fields) if model else []
+
+
+def _describe(err: dict) -> str:
+    loc = tuple(err["loc"])
+    where = ".".join(str(p) for p in loc[:-1])
+    key = str(loc[-1]) if loc else ""
+    prefix = f"[{where}] {key}" if where else key
+    kind = err["type"]
+    if kind == "extra_forbidden":
+        known = _known_keys(loc)
+        stem = key.rsplit("_", 2)[0] if "_" in key else key
+        close = difflib.get_close_matches(key, known, n=1, cutoff=0.5) or [
+            k for k in known if k.startswith(stem)][:1]
+        units = " (units are part of key names)" if close and "_" in key else ""
+        hint = f"; did you mean {close[0]!r}?{units}" if close else (
+            f"; known keys: {', '.join(known)}" if known else "")
+        return f"{prefix}: unknown key{hint}"
+    if kind == "missing":
+        return f"{prefix}: missing; add it"
+    if kind.startswith(("greater_than", "less_than")):
+        return f"{prefix}: {err['msg'].lower()} (got {err.get('input')!r})"
+    if kind == "value_error":
+        return f"{'[' + '.'.join(str(p) for p in loc) + '] ' if loc else ''}" \
+               f"{err['msg'].removeprefix('Value error, ')}"
+    return f"{prefix}: {err['msg']} (got {err.get('input')!r})"
+
+
+def parse_job(doc: dict, file: str = "<job>", folder: str | Path = ".") -> Job:
+    """Validate a parsed TOML document; raise :class:`JobError` listing every problem."""
+    try:
+        return Job.model_validate({**doc, "folder": str(folder)})
+    except ValidationError as e:
+        raise JobError(file, [_describe(err) for err in e.errors()]) from None
+
+
+def load_job(path: str | Path) -> Job:
+    """Read and validate a job file."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as e:
+        raise JobError(str(p), [f"cannot read: {e.strerror}"]) from e
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise JobError(str(p), [f"not valid TOML: {e}"]) from e
+    return parse_job(doc, str(p), p.parent.resolve())

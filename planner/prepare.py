@@ -1,0 +1,151 @@
+"""From a job file to everything known along the path before planning feeds.
+
+:func:`prepare` reads the toolpath files, places them in the cell (``$BASE``), samples them, solves
+the inverse kinematics of every sample, and finds the engagement (per operation from the job, or
+from the stock model). :func:`inspect_job` turns that into the ``cctmill inspect JOB.toml`` summary.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from models.cutting import MILLING_MODES, Tool, load_tool
+from models.robot import Robot, load_robot
+from planner.engagement import Engagement, Stock, fixed_engagement, stock_engagement
+from planner.ik import IKOptions, PathKinematics, solve_path
+from planner.job import Job
+from planner.path import PathSamples, sample_toolpath
+from robot_io.readers import read_toolpath
+from robot_io.toolpath import Toolpath, summarize
+
+__all__ = ["Prepared", "inspect_job", "prepare", "tool_of"]
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """A job read, sampled, solved and engaged.
+
+    Attributes:
+        job: the validated job.
+        robot: the robot.
+        tool: the cutter (job overrides applied).
+        toolpaths: the read toolpaths.
+        path: the samples.
+        kinematics: joint angles along the path.
+        engagement: a_e, a_p, mode and radial direction per sample (radial direction in the robot
+            base).
+    """
+
+    job: Job
+    robot: Robot
+    tool: Tool
+    toolpaths: tuple[Toolpath, ...]
+    path: PathSamples
+    kinematics: PathKinematics
+    engagement: Engagement
+
+
+def tool_of(job: Job) -> Tool:
+    """The job's cutter: the tool data file with the job's overrides."""
+    base = load_tool(job.tool.name)
+    return Tool(name=base.name, flutes=job.tool.flutes or base.flutes,
+                radius=(job.tool.diameter_mm * 5e-4) if job.tool.diameter_mm else base.radius,
+                helix_angle=base.helix_angle)
+
+
+def prepare(job: Job, progress: bool = False) -> Prepared:
+    """Read, sample, solve and engage a job (offline: raises on bad input).
+
+    Args:
+        job: the validated job.
+        progress: show progress on stderr (long paths).
+    """
+    robot = load_robot(job.cell.robot)
+    tool = tool_of(job)
+    options: dict[str, Any] = {}
+    if job.job.rotary is not None:
+        options["rotary"] = job.job.rotary
+    toolpaths = tuple(read_toolpath(p, strict=job.job.strict, **options)
+                      for p in job.toolpath_files())
+    base = job.base_frame()
+    path = sample_toolpath(list(toolpaths), base, job.path.chord_tol_mm * 1e-3,
+                           job.path.step_max_mm * 1e-3)
+    seed = (np.radians(job.kinematics.seed_joints_deg)
+            if job.kinematics.seed_joints_deg is not None else None)
+    kin = solve_path(robot, path, job.tool_frame(),
+                     IKOptions(seed=seed, choose_for_stiffness=job.kinematics.choose_for_stiffness))
+    eng = job.engagement
+    feed_dir_wp = _feed_dirs(path.position_wp)
+    if eng.source == "fixed":
+        a_e = (2 * tool.radius if eng.milling == "slot" else eng.ae_mm * 1e-3)
+        e = fixed_engagement(len(path), a_e, eng.ap_mm * 1e-3, eng.milling, feed_dir_wp,
+                             path.tool_axis_wp, path.cutting)
+    else:
+        st = eng.stock
+        if st.box_mm is not None:
+            x0, y0, x1, y1 = (v * 1e-3 for v in st.box_mm)
+            stock = Stock.box(x0, y0, x1, y1, st.z_bottom_mm * 1e-3, st.z_top_mm * 1e-3)
+        else:
+            stock = Stock([(x * 1e-3, y * 1e-3) for x, y in st.outline_mm],
+                          st.z_bottom_mm * 1e-3, st.z_top_mm * 1e-3)
+        e = stock_engagement(path.position_wp, path.tool_axis_wp, path.cutting, tool.radius,
+                             stock)
+    rot = base[:3, :3]
+    engagement = Engagement(a_e=e.a_e, a_p=e.a_p, mode=e.mode, radial_dir=e.radial_dir @ rot.T,
+                            engaged_angle=e.engaged_angle)
+    return Prepared(job=job, robot=robot, tool=tool, toolpaths=toolpaths, path=path,
+                    kinematics=kin, engagement=engagement)
+
+
+def _feed_dirs(points: np.ndarray) -> np.ndarray:
+    d = np.diff(points, axis=0, prepend=points[:1])
+    norm = np.linalg.norm(d, axis=1)
+    out = np.zeros_like(points)
+    last = np.array([1.0, 0.0, 0.0])
+    for i in range(points.shape[0]):
+        if norm[i] > 0:
+            last = d[i] / norm[i]
+        out[i] = last
+    if points.shape[0] > 1 and norm[0] == 0:
+        out[0] = out[1]
+    return out
+
+
+def inspect_job(prep: Prepared) -> dict[str, Any]:
+    """The ``cctmill inspect JOB.toml`` summary: toolpaths, reachability, engagement (SI/mm named)."""
+    kin, e, path = prep.kinematics, prep.engagement, prep.path
+    codes = {v: k for k, v in MILLING_MODES.items()}
+    engaged = e.mode >= 0
+    modes = {codes.get(int(c), "air"): int(np.sum(e.mode == c)) for c in np.unique(e.mode)}
+
+    def stats(v: np.ndarray) -> dict[str, float] | None:
+        v = v[engaged]
+        if v.size == 0:
+            return None
+        return {"min": float(v.min() * 1e3), "mean": float(v.mean() * 1e3),
+                "max": float(v.max() * 1e3)}
+
+    q = np.degrees(kin.q)
+    return {
+        "job": prep.job.job.name,
+        "toolpaths": [summarize(tp) for tp in prep.toolpaths],
+        "samples": len(path),
+        "path_length_m": float(path.s[-1]),
+        "reachability": {
+            "all_reachable": kin.all_reachable,
+            "unreachable_samples": int(np.sum(~kin.reachable)),
+            "problems": kin.problems,
+            "configuration_jumps": kin.jumps.tolist(),
+            "joint_range_deg": {name: [float(q[:, i].min()), float(q[:, i].max())]
+                                for i, name in enumerate(kin.joint_names)},
+        },
+        "engagement": {
+            "source": prep.job.engagement.source,
+            "modes": modes,
+            "ae_mm": stats(e.a_e),
+            "ap_mm": stats(e.a_p),
+        },
+    }
