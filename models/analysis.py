@@ -107,7 +107,11 @@ class Cut:
             raise InputError("milling", f"{self.mode!r} is not one of up, down, slot")
         if not self.radius > 0.0:
             raise InputError("tool radius", "must be positive")
-        if int(self.flutes) != self.flutes or self.flutes < 1:
+        try:
+            whole = int(self.flutes) == self.flutes
+        except (TypeError, ValueError, OverflowError):  # NaN, ±inf, non-numbers
+            whole = False
+        if not whole or self.flutes < 1:
             raise InputError("flutes", "must be a positive integer")
         if self.mode == "slot":
             if not np.isclose(self.a_e, 2.0 * self.radius, rtol=1e-6):
@@ -274,11 +278,10 @@ def _build_outputs(robot: Robot, process_model: str, mass_model: str) -> tuple[l
 
 
 @lru_cache(maxsize=None)
-def _cached_point_function(robot_name: str, process_model: str, mass_model: str,
+def _cached_point_function(robot: Robot, process_model: str, mass_model: str,
                            outputs: tuple[str, ...]) -> ca.Function:
-    from models.robot import load_robot
-
-    robot = load_robot(robot_name)
+    # Keyed on the Robot object itself (identity): a Robot built from other data must not be
+    # swapped for the shipped robot of the same name. load_robot() caches, so shipped robots hit.
     inputs, values = _build_outputs(robot, process_model, mass_model)
     return ca.Function(f"point_{process_model}_{mass_model}", inputs,
                        [values[k] for k in outputs], ["q", "cut", "feed", "params"],
@@ -306,4 +309,4 @@ def point_function(robot: Robot, process_model: str = "thesis", mass_model: str 
     unknown = [o for o in outs if o not in OUTPUTS]
     if unknown:
         raise InputError("outputs", f"unknown {unknown}; choose from {OUTPUTS}")
-    return _cached_point_function(robot.data.name, process_model, mass_model, outs)
+    return _cached_point_function(robot, process_model, mass_model, outs)

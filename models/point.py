@@ -232,8 +232,9 @@ class PointModel:
             force_limit: resultant force limit [N] (thesis: 300 N for the KR210 with spindle).
         """
         feeds = np.asarray(feeds, float).reshape(-1)
-        if feeds.size == 0 or np.any(feeds <= 0) or np.any(np.diff(feeds) <= 0):
-            raise InputError("feed range", "need increasing positive feeds")
+        if (feeds.size == 0 or not np.all(np.isfinite(feeds)) or np.any(feeds <= 0)
+                or np.any(np.diff(feeds) <= 0)):
+            raise InputError("feed range", "need increasing positive finite feeds")
         sigma = self.check_pose(np.asarray(q, float))
         points = tuple(self._to_analysis(v, f, sigma)
                        for v, f in zip(self._evaluate(q, cut, feeds), feeds, strict=True))
