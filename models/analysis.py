@@ -10,7 +10,8 @@ Inputs (column vectors, SI):
     q      [rad], (n,)                   joint angles (KUKA axis values)
     cut    (12,)  see :data:`CUT_LAYOUT`   Z_o, X_o (base axes), a_e, a_p, mode, spindle speed, N, R
     feed   [m/s], (1,)                    feed speed v_f
-    params (23,)  see :data:`PARAM_LAYOUT` K_θ, CCT switch, cutting coefficients, K_p gain, TCP, γ window, spindle
+    params (23,)  see :data:`PARAM_LAYOUT` K_θ, CCT switch, cutting coefficients, K_p gain, TCP,
+                  γ window, spindle
 
 Build-time choices (they change the graph, so each combination is its own Function, cached):
 ``process_model`` ∈ {``thesis``, ``oriented``} and ``mass_model`` ∈ {``isotropic``, ``robot``}.
@@ -19,7 +20,7 @@ Build-time choices (they change the graph, so each combination is its own Functi
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import cache
 
 import casadi as ca
 import numpy as np
@@ -277,7 +278,7 @@ def _build_outputs(robot: Robot, process_model: str, mass_model: str) -> tuple[l
     return [q, cut, feed, params], values
 
 
-@lru_cache(maxsize=None)
+@cache
 def _cached_point_function(robot: Robot, process_model: str, mass_model: str,
                            outputs: tuple[str, ...]) -> ca.Function:
     # Keyed on the Robot object itself (identity): a Robot built from other data must not be

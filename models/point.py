@@ -10,6 +10,7 @@ saying whether chatter or force binds).
 from __future__ import annotations
 
 from dataclasses import dataclass
+
 import numpy as np
 
 from models.analysis import OUTPUTS, Cut, ModelParameters, point_function

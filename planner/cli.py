@@ -233,7 +233,8 @@ def _inspect_table(summary: dict) -> str:
                                                                         strict=True)) + " mm")
     if feeds:
         rows.append(f"feed          {feeds['min']:.1f} .. {feeds['max']:.1f} mm/min")
-    rows.append(f"tool axis     {'yes (5-axis / tool-axis vectors)' if summary['has_tool_axis'] else 'no (3-axis)'}")
+    axis = "yes (5-axis / tool-axis vectors)" if summary["has_tool_axis"] else "no (3-axis)"
+    rows.append(f"tool axis     {axis}")
     if summary["skipped"]:
         rows.append("skipped       " + ", ".join(f"{k} {v}" for k, v in
                                                 sorted(summary["skipped"].items())))
