@@ -1,0 +1,109 @@
+"""Run every benchmark and write one summary: stdout and ``out/benchmarks.md``.
+
+- ``throughput.py``: poses per second of the point model (CCT stiffness + γ + margin), CasADi VM
+  and compiled C against a per-pose numpy/pinocchio baseline measured in the same run;
+- ``thesis_figures.py``: each published figure the physics core can recompute, and whether this
+  model agrees.
+
+The summary table is printed; ``out/benchmarks.md`` holds it followed by both full tables (the
+README's "Validation against the thesis" and "Performance" sections are pasted from there). The
+file is written atomically (temporary file in ``out/``, then ``os.replace``).
+
+Run from the repository root: ``python benchmarks/run_all.py [--n N] [--baseline-n M]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent
+for _p in (str(REPO), str(HERE)):
+    if _p not in sys.path:
+        sys.path.insert(0, _p)
+
+import thesis_figures  # noqa: E402
+import throughput  # noqa: E402
+
+OUT = REPO / "out" / "benchmarks.md"
+
+
+def write_atomic(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` via a temporary file in the same folder and ``os.replace``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def summary(report: throughput.Report, figures: list[thesis_figures.Figure]) -> str:
+    rows = report.rows
+    base = rows[0]
+    by_name = {r.variant: r for r in rows}
+    best = by_name[report.best]
+    vm = by_name.get("casadi VM  serial map, zero-copy buffer")
+    lines = ["| benchmark | this run | target / published | verdict |", "|---|---|---|---|"]
+    lines.append(f"| throughput: best variant ({best.variant}) | {best.rate:,.0f} poses/s, "
+                 f"{best.ratio:,.0f}× baseline, 1e8 poses in {throughput._hms(best.hours_1e8)} "
+                 f"| ≥ {throughput.TARGET_RATE:,.0f} poses/s and ≥ "
+                 f"{throughput.TARGET_RATIO:.0f}× | {'met' if report.targets_met else 'NOT met'} |")
+    if vm is not None:
+        lines.append(f"| throughput: CasADi VM serial map | {vm.rate:,.0f} poses/s, "
+                     f"{vm.ratio:,.0f}× baseline, 1e8 poses in {throughput._hms(vm.hours_1e8)} "
+                     f"| (no target) | — |")
+    lines.append(f"| throughput: per-pose numpy/pinocchio baseline | {base.rate:,.0f} poses/s, "
+                 f"1e8 poses in {throughput._hms(base.hours_1e8)} | agrees with the kernel "
+                 f"| {base.agreement.removeprefix('vs kernel: ')} |")
+    for f in figures:
+        cells = (f.figure, f.model, f.published, f.verdict)
+        lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
+    m = report.machine
+    lines.append("")
+    lines.append(f"Machine: {m['nproc']} cores, {m['cpu']}; casadi {m['casadi']}, "
+                 f"pinocchio {m['pinocchio']}, numpy {m['numpy']}, gcc {m['gcc']}.")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> str:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--n", type=int, default=100_000, help="poses for the throughput benchmark")
+    ap.add_argument("--baseline-n", type=int, default=2_000,
+                    help="poses for the per-pose baseline")
+    ap.add_argument("--out", type=Path, default=OUT, help="summary file (default out/benchmarks.md)")
+    args = ap.parse_args(argv)
+    t0 = time.perf_counter()
+
+    def log(s: str) -> None:
+        print(s, file=sys.stderr, flush=True)
+
+    log("thesis figures ...")
+    figures = thesis_figures.figures()
+    log("throughput ...")
+    report = throughput.run(args.n, args.baseline_n, log)
+    table = summary(report, figures)
+    doc = "\n\n".join([
+        "# cctmill benchmarks",
+        "## Summary", table,
+        "## Validation against the thesis (benchmarks/thesis_figures.py)",
+        thesis_figures.markdown(figures),
+        "## Performance (benchmarks/throughput.py)", throughput.format_table(report),
+        f"_Total wall time {time.perf_counter() - t0:.0f} s._",
+    ]) + "\n"
+    write_atomic(args.out, doc)
+    print(table)
+    print(f"\nwrote {args.out}")
+    return doc
+
+
+if __name__ == "__main__":
+    main()
