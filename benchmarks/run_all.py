@@ -15,9 +15,7 @@ Run from the repository root: ``python benchmarks/run_all.py [--n N] [--baseline
 from __future__ import annotations
 
 import argparse
-import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -29,21 +27,11 @@ for _p in (str(REPO), str(HERE)):
 
 import thesis_figures  # noqa: E402
 import throughput  # noqa: E402
+import toolpath_speed  # noqa: E402
+
+from planner._atomic import write_text_atomic  # noqa: E402
 
 OUT = REPO / "out" / "benchmarks.md"
-
-
-def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` via a temporary file in the same folder and ``os.replace``."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
 
 
 def summary(report: throughput.Report, figures: list[thesis_figures.Figure]) -> str:
@@ -90,6 +78,12 @@ def main(argv: list[str] | None = None) -> str:
     figures = thesis_figures.figures()
     log("throughput ...")
     report = throughput.run(args.n, args.baseline_n, log)
+    log("toolpath import and IK speed ...")
+    try:
+        speed = {"parse": toolpath_speed.parse_speed(3), "ik": toolpath_speed.ik_speed(3)}
+        speed_md = toolpath_speed.markdown(speed)
+    except ImportError as e:
+        speed_md = f"skipped: {e}"
     table = summary(report, figures)
     doc = "\n\n".join([
         "# cctmill benchmarks",
@@ -97,9 +91,10 @@ def main(argv: list[str] | None = None) -> str:
         "## Validation against the thesis (benchmarks/thesis_figures.py)",
         thesis_figures.markdown(figures),
         "## Performance (benchmarks/throughput.py)", throughput.format_table(report),
+        "## Toolpath import and path kinematics (benchmarks/toolpath_speed.py)", speed_md,
         f"_Total wall time {time.perf_counter() - t0:.0f} s._",
     ]) + "\n"
-    write_atomic(args.out, doc)
+    write_text_atomic(args.out, doc)
     print(table)
     print(f"\nwrote {args.out}")
     return doc
