@@ -82,7 +82,7 @@ def prepare(job: Job, progress: bool = False) -> Prepared:
     if eng.source == "fixed":
         a_e = (2 * tool.radius if eng.milling == "slot" else eng.ae_mm * 1e-3)
         e = fixed_engagement(len(path), a_e, eng.ap_mm * 1e-3, eng.milling, feed_dir_wp,
-                             path.tool_axis_wp, path.cutting)
+                             path.tool_axis_wp, path.cutting, tool_radius=tool.radius)
     else:
         st = eng.stock
         if st.box_mm is not None:
@@ -95,7 +95,9 @@ def prepare(job: Job, progress: bool = False) -> Prepared:
                              stock)
     rot = base[:3, :3]
     engagement = Engagement(a_e=e.a_e, a_p=e.a_p, mode=e.mode, radial_dir=e.radial_dir @ rot.T,
-                            engaged_angle=e.engaged_angle)
+                            engaged_angle=e.engaged_angle,
+                            feed_dir=None if e.feed_dir is None else e.feed_dir @ rot.T,
+                            plunge=e.plunge)
     return Prepared(job=job, robot=robot, tool=tool, toolpaths=toolpaths, path=path,
                     kinematics=kin, engagement=engagement)
 
