@@ -56,6 +56,8 @@ class IKOptions:
         seed: first-sample seed joints [rad], shape (n,); ``None`` = automatic.
         choose_for_stiffness: pick the free rotation at the first sample for the largest smallest
             translational stiffness (CCT-free, K_θ of the robot).
+        tool_rotation: hold the rotation about the tool axis at this angle [rad] (measured from the
+            TCP y axis lying in the horizontal plane, see ``_frame_about``) instead of leaving it free.
         max_iterations: LM iterations per sample.
         damping: LM damping λ [-] (relative to the task Jacobian scale).
         limit_gain: null-space gain of the joint-limit push [-].
@@ -63,6 +65,7 @@ class IKOptions:
 
     seed: np.ndarray | None = None
     choose_for_stiffness: bool = False
+    tool_rotation: float | None = None
     max_iterations: int = 60
     damping: float = 1e-4
     limit_gain: float = 0.5
@@ -277,8 +280,13 @@ def solve_path(robot: Robot, path: PathSamples, tool: np.ndarray,
     limiting: list = [None] * n
     direction = -path.tool_axis  # TCP +x points from the spindle to the tip
     q = _first(solver, path.position[0], direction[0], opt)
+    if opt.tool_rotation is not None:
+        q, *_ = solver.solve(q, path.position[0], direction[0],
+                             rot=_frame_about(direction[0], opt.tool_rotation))
     for i in range(n):
-        q_new, ep, er, it = solver.solve(q, path.position[i], direction[i])
+        rot = (None if opt.tool_rotation is None
+               else _frame_about(direction[i], opt.tool_rotation))
+        q_new, ep, er, it = solver.solve(q, path.position[i], direction[i], rot=rot)
         converged = ep < CONVERGED_POSITION and er < CONVERGED_AXIS
         joint = solver.within_limits(q_new)
         good = converged and joint is None

@@ -29,6 +29,7 @@ Example (see ``planner/data/demo/demo_job.toml`` for a complete one)::
 from __future__ import annotations
 
 import difflib
+import json
 import tomllib
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -48,12 +49,14 @@ __all__ = [
     "KinematicsSection",
     "LimitsSection",
     "ModelSection",
+    "KEY_DOCS",
     "PathSection",
     "SpindleSection",
     "StockSection",
     "ToolSection",
     "load_job",
     "parse_job",
+    "reference_markdown",
 ]
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
@@ -238,6 +241,78 @@ class Job(_Section):
     def tool_frame(self) -> np.ndarray:
         """``$TOOL`` as a 4×4 homogeneous transform (TCP → flange), SI."""
         return frame_matrix(self.cell.tcp_mm, self.cell.tcp_abc_deg)
+
+
+#: One line per key for the generated reference (a test checks every schema field has one).
+KEY_DOCS: dict[str, str] = {
+    "material": "material data file name (shipped: al6061)",
+    "job.name": "job name, used for output names",
+    "job.toolpath": "toolpath file(s), G-code / APT-CL / KRL, relative to the job file; read in order",
+    "job.strict": "stop at the first problem in a toolpath (false: collect warnings and go on)",
+    "job.rotary": "G-code A/B/C kinematics: none or xyzac-trunnion",
+    "cell.robot": "robot data name (URDF + TOML in models/data/robots)",
+    "cell.base_mm": "$BASE origin: the workpiece frame in the robot base [mm]",
+    "cell.base_abc_deg": "$BASE orientation, KUKA A, B, C [deg] (R = Rz(A) Ry(B) Rx(C))",
+    "cell.tcp_mm": "$TOOL origin: the tool tip in the flange frame [mm]",
+    "cell.tcp_abc_deg": "$TOOL orientation [deg]; the tool axis is the TCP's +x",
+    "cell.joint_stiffness_scale": "multiplies the robot's joint stiffness (calibration)",
+    "tool.name": "tool data file name (shipped: em25_2f)",
+    "tool.diameter_mm": "override the tool diameter [mm]",
+    "tool.flutes": "override the number of flutes",
+    "spindle.rpm": "spindle speed [rpm]",
+    "spindle.mass_kg": "spindle point mass [kg] (default: robot data)",
+    "spindle.com_mm": "spindle centre of mass in the flange frame [mm] (default: robot data)",
+    "spindle.power_max_kw": "spindle power limit [kW]",
+    "limits.force_max_n": "resultant cutting force limit [N] (thesis: 300 N for the KR210)",
+    "limits.deflection_tol_mm": "static deflection tolerance at the TCP [mm]",
+    "limits.feed_min_mm_s": "lowest feed a section may get [mm/s]",
+    "limits.feed_max_mm_s": "highest feed a section may get [mm/s]",
+    "limits.feed_change_max_mm_s": "largest feed change between neighbouring sections [mm/s]",
+    "limits.margin_min_n_per_m": "required chatter stability margin [N/m]",
+    "engagement.source": "fixed (per operation, below) or stock (2.5-D stock model)",
+    "engagement.ae_mm": "radial depth of cut [mm] (fixed)",
+    "engagement.ap_mm": "axial depth of cut [mm] (fixed)",
+    "engagement.milling": "up, down or slot (fixed)",
+    "engagement.stock": "the stock table (source = stock)",
+    "stock.box_mm": "stock outline as [xmin, ymin, xmax, ymax] in the workpiece frame [mm]",
+    "stock.outline_mm": "stock outline as a polygon [[x, y], ...] [mm]",
+    "stock.z_bottom_mm": "stock bottom [mm]",
+    "stock.z_top_mm": "stock top [mm]",
+    "model.process_model": "thesis (rank one, default) or oriented (Tlusty)",
+    "model.mass_model": "isotropic (stiffness only) or robot (CRBA + spindle)",
+    "model.chatter_criterion": "eigen or gamma_window",
+    "model.gamma_window_deg": "calibrated [γ_lo, γ_hi] for gamma_window [deg]",
+    "model.process_gain": "multiplies the process stiffness K_p (calibration)",
+    "model.cct": "include the force-dependent CCT stiffness term",
+    "path.chord_tol_mm": "largest arc chord error [mm]",
+    "path.step_max_mm": "largest distance between path samples [mm]",
+    "kinematics.seed_joints_deg": "joint angles to start the first IK solve from [deg]",
+    "kinematics.tool_rotation": "free: the rotation about the tool axis is chosen (continuity, "
+                                "limits); fixed: held at tool_rotation_deg",
+    "kinematics.tool_rotation_deg": "rotation about the tool axis when fixed [deg]",
+    "kinematics.choose_for_stiffness": "pick the free rotation at the first sample for stiffness",
+}
+
+
+def reference_markdown() -> str:
+    """The job file reference (one table per TOML table), generated from the schema."""
+    out = []
+    tables = [("(top level)", None, {"material": Job.model_fields["material"]})]
+    for name in ("job", "cell", "tool", "spindle", "limits", "engagement", "stock", "model",
+                 "path", "kinematics"):
+        model = _MODELS[name]
+        tables.append(("[engagement.stock]" if name == "stock" else f"[{name}]", name,
+                       model.model_fields))
+    for title, prefix, fields in tables:
+        out += [f"**{title}**", "", "| key | default | meaning |", "|---|---|---|"]
+        for key, info in fields.items():
+            doc = KEY_DOCS[f"{prefix}.{key}" if prefix else key]
+            default = "required" if info.is_required() else f"`{json.dumps(info.default)}`"
+            if info.default is None:
+                default = "—"
+            out.append(f"| `{key}` | {default} | {doc} |")
+        out.append("")
+    return "\n".join(out).rstrip() + "\n"
 
 
 def frame_matrix(xyz_mm, abc_deg) -> np.ndarray:

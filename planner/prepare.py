@@ -75,8 +75,10 @@ def prepare(job: Job, progress: bool = False) -> Prepared:
                            job.path.step_max_mm * 1e-3)
     seed = (np.radians(job.kinematics.seed_joints_deg)
             if job.kinematics.seed_joints_deg is not None else None)
-    kin = solve_path(robot, path, job.tool_frame(),
-                     IKOptions(seed=seed, choose_for_stiffness=job.kinematics.choose_for_stiffness))
+    fixed = job.kinematics.tool_rotation == "fixed"
+    kin = solve_path(robot, path, job.tool_frame(), IKOptions(
+        seed=seed, choose_for_stiffness=job.kinematics.choose_for_stiffness and not fixed,
+        tool_rotation=np.radians(job.kinematics.tool_rotation_deg) if fixed else None))
     eng = job.engagement
     feed_dir_wp = _feed_dirs(path.position_wp)
     if eng.source == "fixed":

@@ -94,3 +94,17 @@ def test_partly_unreachable_path_names_the_first_sample(robot):
     first_bad = int(np.flatnonzero(~kin.reachable)[0])
     assert np.all(kin.reachable[:first_bad]) and not np.any(kin.reachable[first_bad:])
     assert kin.problems[0].startswith(f"samples {first_bad}..{len(path) - 1} (line.nc:2")
+
+
+def test_fixed_tool_rotation_holds_the_tcp_y_axis(robot):
+    from planner.ik import _frame_about
+
+    base = frame_matrix([1500.0, -60.0, 400.0], [0.0, 0.0, 0.0])
+    path = sample_toolpath([_square(0.1)], base, 1e-5, 1e-2)
+    psi = np.radians(30.0)
+    kin = solve_path(robot, path, TOOL, IKOptions(tool_rotation=psi))
+    assert kin.all_reachable
+    for i in (0, len(path) // 2, len(path) - 1):
+        m = _fk(robot, kin.q[i])
+        want = _frame_about(-path.tool_axis[i], psi)
+        assert np.allclose(m.rotation, want, atol=1e-6)

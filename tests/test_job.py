@@ -84,3 +84,15 @@ def test_demo_job_is_valid():
     path = resources.files("planner").joinpath("data/demo/demo_job.toml")
     job = load_job(str(path))
     assert all(p.exists() for p in job.toolpath_files())
+
+
+def test_every_key_is_documented_and_the_reference_is_in_the_readme():
+    """The README's job file reference is generated from the schema; keep them equal."""
+    from pathlib import Path
+
+    from planner.job import reference_markdown
+
+    text = reference_markdown()
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    assert text in readme, "regenerate: python -c 'from planner.job import reference_markdown; " \
+                           "print(reference_markdown())' and paste into README"
