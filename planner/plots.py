@@ -22,6 +22,16 @@ def _figure(**kw):
     return plt, plt.figure(**kw)
 
 
+def _save(plt, fig, title: str, path: str | os.PathLike) -> Path:
+    """Title, tight layout, atomic PNG write, close."""
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, format="png")
+    plt.close(fig)
+    return Path(path)
+
+
 def _spans(mask: np.ndarray) -> list[tuple[int, int]]:
     """Index runs [i, j] where ``mask`` is True."""
     runs, start = [], None
@@ -81,12 +91,7 @@ def plot_characteristic(ch: StabilityCharacteristic, path: str | os.PathLike,
     p = ch.points[0] if ch.points else None
     if p is not None:
         title += f"  ({p.process_model} process model, {p.mass_model} mass, {p.criterion})"
-    fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    with atomic_path(path, suffix=".png") as tmp:
-        fig.savefig(tmp, format="png")
-    plt.close(fig)
-    return Path(path)
+    return _save(plt, fig, title, path)
 
 
 def plot_path_kinematics(s: np.ndarray, q: np.ndarray, lower: np.ndarray, upper: np.ndarray,
@@ -134,9 +139,4 @@ def plot_path_kinematics(s: np.ndarray, q: np.ndarray, lower: np.ndarray, upper:
     ax_e.set_ylabel("depth of cut [mm]")
     ax_e.set_xlabel("path length s [m]")
     ax_e.legend(loc="upper left", fontsize=7, ncol=5)
-    fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    with atomic_path(path, suffix=".png") as tmp:
-        fig.savefig(tmp, format="png")
-    plt.close(fig)
-    return Path(path)
+    return _save(plt, fig, title, path)
