@@ -126,7 +126,13 @@ from robot_io._apt_records import (
     MM,
     TOOL_AXIS_NORM_TOL,
 )
-from robot_io.toolpath import ARC_RADIUS_RTOL, ARC_RADIUS_TOL, Toolpath, ToolpathError
+from robot_io.toolpath import (
+    ARC_RADIUS_RTOL,
+    ARC_RADIUS_TOL,
+    Toolpath,
+    check_option_names,
+    read_source_text,
+)
 
 __all__ = [
     "ARC_MIN_RADIUS",
@@ -167,10 +173,7 @@ class AptOptions:
     @classmethod
     def from_kwargs(cls, **options: Any) -> AptOptions:
         """Validate reader keyword options; unknown names raise :class:`InputError`."""
-        names = set(cls.__dataclass_fields__)
-        for k in options:
-            if k not in names:
-                raise InputError(k, f"unknown APT reader option; known: {sorted(names)}")
+        check_option_names(cls, options, "APT")
         if options.get("default_units", "mm") not in ("mm", "inch"):
             raise InputError("default_units", "must be 'mm' or 'inch'")
         if options.get("apply_frames", False) not in (True, False):
@@ -204,16 +207,7 @@ def read_apt(path: str | os.PathLike[str], strict: bool = True, **options: Any) 
     :func:`read_apt_text`; ``meta["encoding"]`` records the decoding used."""
     file = os.fspath(path)
     opts = AptOptions.from_kwargs(**options)
-    try:
-        with open(file, "rb") as fh:
-            data = fh.read()
-    except OSError as e:
-        raise ToolpathError(file, 0, 0, f"cannot read the file ({e.strerror}); check the "
-                            "path") from e
-    try:
-        text, encoding = data.decode("utf-8-sig"), "utf-8"
-    except UnicodeDecodeError:
-        text, encoding = data.decode("latin-1"), "latin-1"
+    text, encoding = read_source_text(file)
     tp = run_program(text, file, strict, opts)
     tp.meta["encoding"] = encoding
     return tp

@@ -93,7 +93,13 @@ from robot_io._gcode_words import (
     MM,
 )
 from robot_io.rotary import ROTARY_KINEMATICS
-from robot_io.toolpath import ARC_RADIUS_RTOL, ARC_RADIUS_TOL, Toolpath, ToolpathError
+from robot_io.toolpath import (
+    ARC_RADIUS_RTOL,
+    ARC_RADIUS_TOL,
+    Toolpath,
+    check_option_names,
+    read_source_text,
+)
 
 __all__ = [
     "ARC_MIN_RADIUS",
@@ -138,10 +144,7 @@ class GcodeOptions:
     @classmethod
     def from_kwargs(cls, rotary: str | None = None, **options: Any) -> GcodeOptions:
         """Validate reader keyword options; unknown names raise :class:`InputError`."""
-        names = set(cls.__dataclass_fields__)
-        for k in options:
-            if k not in names:
-                raise InputError(k, f"unknown G-code reader option; known: {sorted(names)}")
+        check_option_names(cls, options, "G-code")
         rot = "none" if rotary is None else str(rotary)
         if rot != "none" and rot not in ROTARY_KINEMATICS:
             raise InputError("rotary", f"unknown rotary kinematics {rot!r}; choose 'none' or "
@@ -191,16 +194,7 @@ def read_gcode(path: str | os.PathLike[str], strict: bool = True, rotary: str | 
     :func:`read_gcode_text`; ``meta["encoding"]`` records the decoding used."""
     file = os.fspath(path)
     opts = GcodeOptions.from_kwargs(rotary, **options)
-    try:
-        with open(file, "rb") as fh:
-            data = fh.read()
-    except OSError as e:
-        raise ToolpathError(file, 0, 0, f"cannot read the file ({e.strerror}); check the "
-                            "path") from e
-    try:
-        text, encoding = data.decode("utf-8-sig"), "utf-8"
-    except UnicodeDecodeError:
-        text, encoding = data.decode("latin-1"), "latin-1"
+    text, encoding = read_source_text(file)
     tp = run_program(text, file, strict, opts)
     tp.meta["encoding"] = encoding
     return tp

@@ -115,7 +115,7 @@ from robot_io._krl_interp import (
 from robot_io._krl_motion import PLAUSIBLE_VEL_CP
 from robot_io._krl_program import read_text
 from robot_io._krl_syntax import MAX_KRL_VALUE
-from robot_io.toolpath import Toolpath, ToolpathError
+from robot_io.toolpath import Toolpath, ToolpathError, check_option_names
 
 __all__ = [
     "CIRC_COLLINEAR_SIN",
@@ -153,10 +153,8 @@ class KrlOptions:
     @classmethod
     def from_kwargs(cls, **options: Any) -> KrlOptions:
         """Validate reader keyword options; unknown names raise :class:`InputError`."""
+        check_option_names(cls, options, "KRL")
         names = set(cls.__dataclass_fields__)
-        for k in options:
-            if k not in names:
-                raise InputError(k, f"unknown KRL reader option; known: {sorted(names)}")
         out: dict[str, tuple[str, ...]] = {}
         for k in names:
             v = options.get(k, ())

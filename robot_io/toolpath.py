@@ -31,6 +31,8 @@ __all__ = [
     "ToolpathReader",
     "ToolpathWarning",
     "arc_geometry",
+    "check_option_names",
+    "read_source_text",
     "summarize",
 ]
 
@@ -168,6 +170,35 @@ class Toolpath:
     warnings: list[ToolpathWarning] = field(default_factory=list)
     skipped: Counter = field(default_factory=Counter)
     meta: dict[str, Any] = field(default_factory=dict)
+
+
+def read_source_text(file: str) -> tuple[str, str]:
+    """Read a toolpath file as text: UTF-8 (a BOM is dropped), falling back to Latin-1.
+
+    Returns:
+        (text, encoding used). Raises :class:`ToolpathError` (line 0) when the file cannot be read.
+    """
+    try:
+        with open(file, "rb") as fh:
+            data = fh.read()
+    except OSError as e:
+        raise ToolpathError(file, 0, 0, f"cannot read the file ({e.strerror}); check the "
+                            "path") from e
+    try:
+        return data.decode("utf-8-sig"), "utf-8"
+    except UnicodeDecodeError:
+        return data.decode("latin-1"), "latin-1"
+
+
+def check_option_names(options_class: type, options: dict[str, Any], reader: str) -> None:
+    """Raise :class:`~models.errors.InputError` for a keyword that ``options_class`` (a dataclass)
+    does not have; ``reader`` names the reader in the message (e.g. ``"APT"``)."""
+    from models.errors import InputError
+
+    names = set(options_class.__dataclass_fields__)
+    for k in options:
+        if k not in names:
+            raise InputError(k, f"unknown {reader} reader option; known: {sorted(names)}")
 
 
 class ToolpathReader(Protocol):
