@@ -127,3 +127,20 @@ def random_poses(robot: Robot, rng: np.random.Generator) -> Callable[..., np.nda
         raise RuntimeError("could not draw enough well-conditioned poses")  # pragma: no cover
 
     return draw
+
+
+def mutate(base: bytes, alphabet: bytes, rng: np.random.Generator, edits: int = 5) -> bytes:
+    """``base`` with 1..``edits`` random single-byte replacements, insertions or deletions drawn from
+    ``alphabet`` (the readers' fuzz tests)."""
+    data = bytearray(base)
+    for _ in range(int(rng.integers(1, edits + 1))):
+        i = int(rng.integers(0, len(data)))
+        op = int(rng.integers(0, 3))
+        b = alphabet[int(rng.integers(0, len(alphabet)))]
+        if op == 0:
+            data[i] = b
+        elif op == 1:
+            data.insert(i, b)
+        else:
+            del data[i]
+    return bytes(data)

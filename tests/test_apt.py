@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import mutate
 
 from models.errors import InputError
 from robot_io.apt import AptReader, read_apt, read_apt_text
@@ -506,18 +507,7 @@ def test_fuzz_only_toolpath_errors(rng: np.random.Generator, tmp_path: Path) -> 
     path = tmp_path / "fuzz.apt"
     outcomes = {"ok": 0, "error": 0}
     for _ in range(300):
-        data = bytearray(base)
-        for _ in range(int(rng.integers(1, 6))):
-            i = int(rng.integers(0, len(data)))
-            op = int(rng.integers(0, 3))
-            b = alphabet[int(rng.integers(0, len(alphabet)))]
-            if op == 0:
-                data[i] = b
-            elif op == 1:
-                data.insert(i, b)
-            else:
-                del data[i]
-        path.write_bytes(bytes(data))
+        path.write_bytes(mutate(base, alphabet, rng))
         try:
             summarize(read_apt(path))
             outcomes["ok"] += 1

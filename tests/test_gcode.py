@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import mutate
 
 from models.errors import InputError
 from robot_io.gcode import GcodeReader, read_gcode, read_gcode_text
@@ -277,18 +278,7 @@ def test_fuzz_only_toolpath_errors(rng: np.random.Generator, tmp_path: Path) -> 
     path = tmp_path / "fuzz.nc"
     outcomes = {"ok": 0, "error": 0}
     for case in range(300):
-        data = bytearray(base)
-        for _ in range(int(rng.integers(1, 6))):
-            i = int(rng.integers(0, len(data)))
-            op = int(rng.integers(0, 3))
-            b = alphabet[int(rng.integers(0, len(alphabet)))]
-            if op == 0:
-                data[i] = b
-            elif op == 1:
-                data.insert(i, b)
-            else:
-                del data[i]
-        path.write_bytes(bytes(data))
+        path.write_bytes(mutate(base, alphabet, rng))
         rotary = "xyzac-trunnion" if case % 2 else None
         try:
             tp = read_gcode(path, rotary=rotary)
