@@ -15,7 +15,7 @@ import numpy as np
 from models.errors import InputError
 from robot_io.toolpath import Move, MoveKind, Toolpath, arc_geometry
 
-__all__ = ["PathSamples", "sample_toolpath"]
+__all__ = ["PathSamples", "sample_toolpath", "step_directions"]
 
 #: Tool axis of a 3-axis program (no tool-axis words): +Z of the workpiece frame, tip → spindle.
 DEFAULT_TOOL_AXIS = np.array([0.0, 0.0, 1.0])
@@ -66,19 +66,34 @@ class PathSamples:
 
     @property
     def feed_dir(self) -> np.ndarray:
-        """Unit direction of travel in the robot base, shape (n, 3) (the first sample copies the
-        second's; zero-length steps copy the previous direction)."""
-        d = np.diff(self.position, axis=0)
-        norm = np.linalg.norm(d, axis=1)
-        out = np.zeros_like(self.position)
-        last = np.array([1.0, 0.0, 0.0])
-        for i in range(1, len(self)):
-            if norm[i - 1] > 0:
-                last = d[i - 1] / norm[i - 1]
-            out[i] = last
-        if len(self) > 1:
-            out[0] = out[1]
-        return out
+        """Unit direction of travel in the robot base, shape (n, 3) (see :func:`step_directions`)."""
+        return step_directions(self.position)
+
+    @property
+    def feed_dir_wp(self) -> np.ndarray:
+        """Unit direction of travel in the workpiece frame, shape (n, 3)."""
+        return step_directions(self.position_wp)
+
+
+def step_directions(points: np.ndarray) -> np.ndarray:
+    """Unit direction of the step arriving at each point, shape (n, 3).
+
+    The first point copies the second's; a zero-length step copies the previous direction.
+
+    Args:
+        points: ordered positions [m], shape (n, 3).
+    """
+    d = np.diff(points, axis=0)
+    norm = np.linalg.norm(d, axis=1)
+    out = np.zeros_like(points)
+    last = np.array([1.0, 0.0, 0.0])
+    for i in range(1, points.shape[0]):
+        if norm[i - 1] > 0:
+            last = d[i - 1] / norm[i - 1]
+        out[i] = last
+    if points.shape[0] > 1:
+        out[0] = out[1]
+    return out
 
 
 def _chord_count(radius: float, sweep: float, chord_tol: float) -> int:

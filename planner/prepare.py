@@ -80,7 +80,7 @@ def prepare(job: Job, progress: bool = False) -> Prepared:
         seed=seed, choose_for_stiffness=job.kinematics.choose_for_stiffness and not fixed,
         tool_rotation=np.radians(job.kinematics.tool_rotation_deg) if fixed else None))
     eng = job.engagement
-    feed_dir_wp = _feed_dirs(path.position_wp)
+    feed_dir_wp = path.feed_dir_wp
     if eng.source == "fixed":
         a_e = (2 * tool.radius if eng.milling == "slot" else eng.ae_mm * 1e-3)
         e = fixed_engagement(len(path), a_e, eng.ap_mm * 1e-3, eng.milling, feed_dir_wp,
@@ -102,20 +102,6 @@ def prepare(job: Job, progress: bool = False) -> Prepared:
                             plunge=e.plunge)
     return Prepared(job=job, robot=robot, tool=tool, toolpaths=toolpaths, path=path,
                     kinematics=kin, engagement=engagement)
-
-
-def _feed_dirs(points: np.ndarray) -> np.ndarray:
-    d = np.diff(points, axis=0, prepend=points[:1])
-    norm = np.linalg.norm(d, axis=1)
-    out = np.zeros_like(points)
-    last = np.array([1.0, 0.0, 0.0])
-    for i in range(points.shape[0]):
-        if norm[i] > 0:
-            last = d[i] / norm[i]
-        out[i] = last
-    if points.shape[0] > 1 and norm[0] == 0:
-        out[0] = out[1]
-    return out
 
 
 def inspect_job(prep: Prepared) -> dict[str, Any]:
