@@ -27,6 +27,10 @@ from planner.point_report import analysis_json, analysis_table, characteristic_t
 
 __all__ = ["build_parser", "main"]
 
+#: Modules that add one subcommand each: ``register(sub)`` adds its parser and sets ``run``.
+#: One module per command keeps this shell thin and the commands apart.
+_COMMAND_MODULES: tuple[str, ...] = ()
+
 #: The thesis's Case 1 (pose, frame and cut), used by ``cctmill demo``.
 CASE1 = {
     "joints_deg": "-96.42,-29.26,99.08,-9.95,83.23,-160.5",
@@ -343,6 +347,10 @@ def build_parser() -> argparse.ArgumentParser:
     pd = sub.add_parser("demo", help="run the bundled example and write its outputs")
     pd.add_argument("-o", "--output", default="out", help="output folder (default out/)")
     pd.set_defaults(run=_cmd_demo)
+    import importlib
+
+    for name in _COMMAND_MODULES:
+        importlib.import_module(name).register(sub)
     return parser
 
 
