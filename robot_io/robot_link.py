@@ -116,8 +116,7 @@ class LinkStats:
         replies: valid packets received (KVP replies; RSI ``<Rob>`` telegrams).
         malformed: received packets dropped as not following the protocol.
         late: KVP replies slower than the link's ``late_s``; RSI replies sent later than the reply
-            budget after their ``<Rob>`` arrived, plus ``<Rob>`` telegrams whose ``IPOC`` shows
-            missed cycles.
+            budget after their ``<Rob>`` arrived.
         timeouts: KVP requests without a reply in time; RSI: periods without any ``<Rob>`` longer
             than the link timeout.
         reconnects: KVP: successful reconnections after the link was lost; RSI: link back after a

@@ -1,0 +1,72 @@
+"""Simulated path speed of a controller under program override, shared by the simulated peers.
+
+The path speed follows ``programmed_speed × override / 100`` with a first-order lag (time constant
+``tau``), evaluated in closed form at any time, so no thread has to integrate it.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable
+
+__all__ = ["SimulatedPathSpeed"]
+
+
+class SimulatedPathSpeed:
+    """Path speed [m/s] responding to ``$OV_PRO`` changes.
+
+    Args:
+        programmed_speed: ``$VEL.CP`` of the running motion [m/s].
+        tau: time constant of the speed response to an override change [s] (0: immediate).
+        override_percent: initial override [percent].
+        clock: monotonic clock [s] (tests may pass a fake).
+    """
+
+    def __init__(self, programmed_speed: float = 1e-3, tau: float = 0.03, override_percent: float = 100.0,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        if not (programmed_speed >= 0 and tau >= 0):
+            raise ValueError("programmed_speed and tau must be non-negative")
+        self.programmed_speed = programmed_speed
+        self.tau = tau
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._override = float(override_percent)
+        self._t0 = clock()
+        self._v0 = programmed_speed * self._override / 100.0
+        self._s0 = 0.0
+
+    def _state(self, t: float) -> tuple[float, float]:
+        """(speed [m/s], path position [m]) at time ``t``; caller holds the lock."""
+        target = self.programmed_speed * self._override / 100.0
+        dt = max(0.0, t - self._t0)
+        if self.tau == 0:
+            return target, self._s0 + target * dt
+        decay = math.exp(-dt / self.tau)
+        v = target + (self._v0 - target) * decay
+        s = self._s0 + target * dt + (self._v0 - target) * self.tau * (1.0 - decay)
+        return v, s
+
+    @property
+    def override_percent(self) -> float:
+        with self._lock:
+            return self._override
+
+    def set_override(self, percent: float) -> None:
+        """Apply a new override [percent] from now on."""
+        with self._lock:
+            t = self._clock()
+            self._v0, self._s0 = self._state(t)
+            self._t0 = t
+            self._override = float(percent)
+
+    def speed(self) -> float:
+        """Path speed now [m/s]."""
+        with self._lock:
+            return self._state(self._clock())[0]
+
+    def position(self) -> float:
+        """Path length travelled since start [m]."""
+        with self._lock:
+            return self._state(self._clock())[1]
