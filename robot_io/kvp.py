@@ -284,6 +284,12 @@ class KvpConnection:
         except OSError:  # pragma: no cover - close of a broken socket
             pass
 
+    def __enter__(self) -> KvpConnection:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
 
 class KvpClient:
     """``$OV_PRO`` robot link over KukaVarProxy (implements :class:`~robot_io.robot_link.RobotLink`).

@@ -1,0 +1,389 @@
+"""KukaVarProxy: byte layouts against KUKA_IO.md §3.2, the simulated server, py-openshowvar interop,
+the $OV_PRO link (read-back, reconnect with backoff, timeouts). Loopback only, ephemeral ports."""
+
+from __future__ import annotations
+
+import math
+import socket
+import struct
+import threading
+import time
+from types import SimpleNamespace
+
+import pytest
+
+from robot_io.kvp import (
+    FN_READ,
+    FN_WRITE,
+    KvpClient,
+    KvpConnection,
+    KvpReply,
+    KvpRequest,
+    pack_reply,
+    pack_request,
+    parse_reply,
+    parse_request,
+    read_reply,
+)
+from robot_io.kvp_sim import KvpSimServer
+from robot_io.robot_link import LinkError, ProtocolError, RobotLink
+
+py_openshowvar = pytest.importorskip("py_openshowvar")
+
+#: How long a test waits for a background thread to reach a state [s] (generous: 2 shared cores).
+WAIT_S = 3.0
+
+
+def wait_for(cond, timeout: float = WAIT_S) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if cond():
+            return True
+        time.sleep(0.005)
+    return cond()
+
+
+@pytest.fixture(autouse=True)
+def no_leaked_threads():
+    before = set(threading.enumerate())
+    yield
+    assert wait_for(lambda: not (set(threading.enumerate()) - before), 2.0), \
+        f"threads left running: {set(threading.enumerate()) - before}"
+
+
+def _reply_tuple(data: bytes) -> tuple:
+    """A reply unpacked the way the py_openshowvar README prints it."""
+    n = len(data) - 7 - 3
+    return struct.unpack(f"!HHBH{n}s3s", data)
+
+
+# -- byte layouts (KUKA_IO.md §3.2, literally) -----------------------------------------------------
+
+def test_read_request_layout_matches_py_openshowvar_packer():
+    ours = pack_request(KvpRequest(48, FN_READ, "$OV_PRO"))
+    theirs = py_openshowvar.openshowvar._pack_read_req(SimpleNamespace(varname=b"$OV_PRO", msg_id=48))
+    assert ours == theirs == struct.pack("!HHBH7s", 48, 10, 0, 7, b"$OV_PRO")
+
+
+def test_write_request_layout_matches_py_openshowvar_packer():
+    ours = pack_request(KvpRequest(67, FN_WRITE, "$OV_PRO", "80"))
+    theirs = py_openshowvar.openshowvar._pack_write_req(
+        SimpleNamespace(varname=b"$OV_PRO", value=b"80", msg_id=67))
+    # body_len = 1 + 2 + 7 + 2 + 2
+    assert ours == theirs == struct.pack("!HHBH7sH2s", 67, 14, 1, 7, b"$OV_PRO", 2, b"80")
+
+
+def test_reply_layouts_of_the_published_examples():
+    # py_openshowvar README (server that does not count the trailer): read and write of $OV_PRO
+    assert _reply_tuple(pack_reply(48, 0, "100", True, count_trailer=False)) == \
+        (48, 6, 0, 3, b"100", b"\x00\x01\x01")
+    assert _reply_tuple(pack_reply(67, 1, "100", True, count_trailer=False)) == \
+        (67, 6, 1, 3, b"100", b"\x00\x01\x01")
+    # KUKAVARPROXY 6.1.101 (VB source: counts the trailer): failed write of a FRAME
+    failed = struct.pack("!HHBH21s3s", 10, 27, 1, 21, b"{X 50.2, Y -0.5, Z 0}", b"\x00\x01\x00")
+    assert pack_reply(10, 1, "{X 50.2, Y -0.5, Z 0}", False, count_trailer=True) == failed
+    r = parse_reply(failed)
+    assert r == KvpReply(10, 1, None, False, True)
+
+
+@pytest.mark.parametrize("count_trailer", [True, False])
+def test_reply_parser_accepts_both_body_len_variants(count_trailer):
+    data = pack_reply(48, 0, "100", True, count_trailer)
+    assert struct.unpack_from("!H", data, 2)[0] == (9 if count_trailer else 6)
+    assert parse_reply(data) == KvpReply(48, 0, "100", True, count_trailer)
+
+
+@pytest.mark.parametrize("count_trailer", [True, False])
+def test_stream_reader_reads_exactly_one_reply_byte_by_byte(count_trailer):
+    a, b = socket.socketpair()
+    try:
+        b.settimeout(1.0)
+        first = pack_reply(1, 0, "{X 1.0,Y 2.0}", True, count_trailer)
+        second = pack_reply(2, 0, None, False, count_trailer)  # status 0 without value
+        sender = threading.Thread(target=lambda: [a.send(bytes([x])) for x in first + second])
+        sender.start()
+        assert read_reply(b) == KvpReply(1, 0, "{X 1.0,Y 2.0}", True, count_trailer)
+        assert read_reply(b) == KvpReply(2, 0, None, False, count_trailer)
+        sender.join()
+    finally:
+        a.close()
+        b.close()
+
+
+@pytest.mark.parametrize("data, match", [
+    (struct.pack("!HHBH3s3s", 1, 7, 0, 3, b"100", b"\x00\x01\x01"), "fits neither"),
+    (struct.pack("!HHBH3s3s", 1, 6, 0, 3, b"100", b"\x01\x01\x01"), "trailer"),
+    (struct.pack("!HHBH3s3s", 1, 6, 0, 3, b"100", b"\x00\x01\x02"), "trailer"),
+    (struct.pack("!HHBH3s3s", 1, 6, 0, 3, b"1\xff0", b"\x00\x01\x01"), "ASCII"),
+    (struct.pack("!HHBH", 1, 6, 0, 3), "shorter"),
+    (struct.pack("!HHBH3s3s", 1, 6, 0, 4, b"100", b"\x00\x01\x01"), "does not match"),
+])
+def test_malformed_replies_are_refused(data, match):
+    with pytest.raises(ProtocolError, match=match):
+        parse_reply(data)
+
+
+def test_request_round_trip_and_refusals():
+    for req in (KvpRequest(0, FN_READ, "$OV_PRO"), KvpRequest(65535, FN_WRITE, "$OV_PRO", "55"),
+                KvpRequest(7, FN_WRITE, "$BASE", "{X 1.0,Y 2.0,Z 3.0,A 0,B 0,C 0}"),
+                KvpRequest(9, FN_WRITE, "$X", "")):
+        assert parse_request(pack_request(req)) == req
+    with pytest.raises(LinkError, match="msg_id"):
+        pack_request(KvpRequest(70000, FN_READ, "$OV_PRO"))
+    with pytest.raises(LinkError, match="ASCII"):
+        pack_request(KvpRequest(1, FN_READ, "$ÖV"))
+    with pytest.raises(LinkError, match="function"):
+        pack_request(KvpRequest(1, FN_READ, "$OV_PRO", "5"))
+
+
+@pytest.mark.parametrize("frame, match", [
+    (struct.pack("!HHBH7s", 1, 11, 0, 7, b"$OV_PRO"), "body_len"),
+    (struct.pack("!HHBH7sB", 1, 11, 0, 7, b"$OV_PRO", 0), "stray"),
+    (struct.pack("!HHBH7s", 1, 10, 9, 7, b"$OV_PRO"), "unknown function"),
+    (struct.pack("!HHBH7s", 1, 10, 0, 8, b"$OV_PRO"), "name_len"),
+    (struct.pack("!HHBH", 1, 3, 0, 0), "name_len"),
+    (struct.pack("!HHBH7sH1s", 1, 13, 1, 7, b"$OV_PRO", 2, b"8"), "value_len"),
+    (struct.pack("!HHBH7s", 1, 10, 1, 7, b"$OV_PRO"), "without value"),
+    (b"\x00\x01\x00", "shorter"),
+])
+def test_malformed_requests_are_refused(frame, match):
+    with pytest.raises(ProtocolError, match=match):
+        parse_request(frame)
+
+
+# -- the simulated server ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("count_trailer", [True, False])
+def test_sim_server_answers_pipelined_requests_in_order(count_trailer):
+    with KvpSimServer(count_trailer=count_trailer) as srv, \
+            socket.create_connection(srv.address, timeout=2.0) as s:
+        s.sendall(pack_request(KvpRequest(1, FN_READ, "$OV_PRO"))
+                  + pack_request(KvpRequest(2, FN_WRITE, "$OV_PRO", "80"))
+                  + pack_request(KvpRequest(3, FN_READ, "PING"))
+                  + pack_request(KvpRequest(4, FN_READ, "$NO_SUCH_VAR"))
+                  + pack_request(KvpRequest(5, FN_WRITE, "$OV_PRO", "150"))
+                  + pack_request(KvpRequest(6, FN_WRITE, "$OV_PRO", "abc"))
+                  + struct.pack("!HHBH9s", 7, 12, 2, 9, b"$AXIS_ACT"))  # array read: unsupported
+        replies = [read_reply(s) for _ in range(7)]
+        assert [(r.msg_id, r.function, r.value, r.ok) for r in replies] == [
+            (1, 0, "100", True), (2, 1, "80", True), (3, 0, "PONG", True), (4, 0, None, False),
+            (5, 1, None, False), (6, 1, None, False), (7, 2, None, False)]
+        assert all(r.trailer_counted is count_trailer for r in replies)
+        assert srv.override_percent == 80.0
+        st = srv.stats
+        assert (st.requests, st.replies, st.malformed, st.unsupported, st.ov_pro_writes) == (7, 7, 0, 1, 1)
+
+
+def test_sim_server_override_drives_the_path_speed():
+    with KvpSimServer(programmed_speed=2e-3, tau=0.02) as srv, KvpConnection(*srv.address) as conn:
+        assert srv.path_speed() == pytest.approx(2e-3)
+        assert conn.write("$OV_PRO", "50") == "50"
+        just_after = srv.path_speed()
+        assert 1e-3 < just_after <= 2e-3  # first-order lag, not a jump
+        assert wait_for(lambda: abs(srv.path_speed() - 1e-3) < 1e-6)
+        assert conn.read("$OV_PRO") == "50"
+        assert conn.ping()
+
+
+def test_sim_server_refuses_clients_beyond_the_limit():
+    with KvpSimServer(max_clients=2) as srv:
+        a, b = KvpConnection(*srv.address), KvpConnection(*srv.address)
+        try:
+            assert a.ping() and b.ping()
+            with socket.create_connection(srv.address, timeout=2.0) as c:
+                assert c.recv(16) == b""  # closed by the server at once
+            assert wait_for(lambda: srv.stats.refused == 1)
+            assert srv.stats.connections == 2
+        finally:
+            a.close()
+            b.close()
+
+
+def test_sim_server_closes_idle_clients():
+    with KvpSimServer(idle_timeout_s=0.15) as srv, \
+            socket.create_connection(srv.address, timeout=2.0) as s:
+        t0 = time.monotonic()
+        assert s.recv(16) == b""
+        assert time.monotonic() - t0 >= 0.15
+        assert wait_for(lambda: srv.stats.idle_closed == 1)
+
+
+def test_sim_server_cannot_bind_a_used_port():
+    with KvpSimServer() as srv:
+        with pytest.raises(LinkError, match="cannot bind"):
+            KvpSimServer(port=srv.address[1]).start()
+
+
+# -- interoperability with py-openshowvar -----------------------------------------------------------
+
+@pytest.mark.parametrize("count_trailer", [True, False])
+def test_py_openshowvar_reads_and_writes_ov_pro_on_the_sim(count_trailer):
+    with KvpSimServer(count_trailer=count_trailer) as srv:
+        client = py_openshowvar.openshowvar(*srv.address)
+        try:
+            assert client.read("$OV_PRO", debug=False) == b"100"
+            assert client.write("$OV_PRO", "80", debug=False) == b"80"
+            assert srv.override_percent == 80.0
+            assert client.read("$OV_PRO", debug=False) == b"80"
+            assert client.read("PING", debug=False) == b"PONG"
+            assert client.read("$NO_SUCH_VAR", debug=False) is None  # status 0
+            assert client.read("$OV_PRO", debug=False) == b"80"  # still in step after a failure?
+        finally:
+            client.close()
+
+
+@pytest.mark.parametrize("count_trailer", [True, False])
+def test_our_client_against_py_openshowvar_writes(count_trailer):
+    """Both clients on one server: a value one writes the other reads."""
+    with KvpSimServer(count_trailer=count_trailer) as srv, KvpClient(*srv.address, poll_s=0.02) as link:
+        theirs = py_openshowvar.openshowvar(*srv.address)
+        try:
+            assert link.wait_connected()
+            assert link.set_override(42).ok
+            assert link.flush()
+            assert theirs.read("$OV_PRO", debug=False) == b"42"
+            assert theirs.write("$OV_PRO", "17", debug=False) == b"17"
+            assert wait_for(lambda: link.read_override() == 17.0)
+        finally:
+            theirs.close()
+
+
+# -- the $OV_PRO link ---------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("count_trailer", [True, False])
+def test_client_writes_and_reads_back_ov_pro(count_trailer):
+    with KvpSimServer(count_trailer=count_trailer) as srv, KvpClient(*srv.address) as link:
+        assert isinstance(link, RobotLink)
+        assert link.wait_connected()
+        status = link.set_override(63.4)
+        assert status.ok and status.percent == 63
+        assert link.flush()
+        assert link.read_override() == 63.0
+        assert srv.override_percent == 63.0
+        assert link.set_override(250).percent == 100
+        assert link.flush() and srv.override_percent == 100.0
+        assert link.set_override(-5).percent == 0
+        assert link.flush() and srv.override_percent == 0.0
+        bad = link.set_override(math.nan)
+        assert not bad.ok and bad.percent is None
+        st = link.stats
+        assert st.malformed == st.timeouts == st.reconnects == 0
+        assert st.replies == st.sent >= 6
+
+
+def test_set_override_does_not_block_on_a_silent_server():
+    """A server that accepts and never answers: the worker hangs in recv, set_override does not."""
+    lsock = socket.socket()
+    lsock.bind(("127.0.0.1", 0))
+    lsock.listen(1)
+    link = KvpClient(*lsock.getsockname(), timeout=0.3)
+    try:
+        conn, _ = lsock.accept()
+        assert link.wait_connected()
+        t0 = time.perf_counter()
+        for i in range(1000):
+            link.set_override(i % 100)
+        # Structural bound: one blocking request would take the 0.3 s timeout.
+        assert time.perf_counter() - t0 < 0.3
+        assert wait_for(lambda: link.stats.timeouts >= 1)
+        assert "no reply" in link.stats.last_error
+        conn.close()
+    finally:
+        link.close()
+        lsock.close()
+
+
+def test_client_reconnects_after_server_restart_on_the_same_port():
+    srv = KvpSimServer().start()
+    port = srv.address[1]
+    link = KvpClient("127.0.0.1", port, backoff_initial_s=0.01, backoff_max_s=0.1)
+    try:
+        assert link.wait_connected()
+        assert link.set_override(70).ok and link.flush()
+        srv.stop()
+        assert wait_for(lambda: not link.connected)
+        status = link.set_override(40)  # while down: kept, not raised
+        assert not status.ok and status.percent == 40 and "reconnecting" in status.reason
+        time.sleep(0.3)  # a few failed attempts with backoff
+        assert link.stats.reconnects == 0
+        srv = KvpSimServer(port=port).start()  # a fresh controller: $OV_PRO back at 100
+        assert link.wait_connected()
+        assert link.flush()
+        assert srv.override_percent == 40.0  # the wanted value is written on reconnect
+        assert link.read_override() == 40.0
+        assert link.stats.reconnects == 1
+    finally:
+        link.close()
+        srv.stop()
+
+
+def test_client_backs_off_exponentially_and_bounded(monkeypatch):
+    import robot_io.kvp as kvp
+
+    attempts: list[float] = []
+
+    def refuse(host, port, timeout):
+        attempts.append(time.monotonic())
+        raise LinkError("kvp", f"cannot connect to {host}:{port}: refused (test)")
+
+    monkeypatch.setattr(kvp, "KvpConnection", refuse)
+    link = KvpClient("127.0.0.1", 9, backoff_initial_s=0.01, backoff_max_s=0.08)
+    try:
+        assert wait_for(lambda: len(attempts) >= 7)
+        assert not link.connected
+        assert "cannot connect" in link.stats.last_error
+        assert not link.set_override(50).ok
+        for _ in range(50):  # set_override must not cut the backoff short
+            link.set_override(50)
+    finally:
+        link.close()
+    gaps = [b - a for a, b in zip(attempts, attempts[1:], strict=False)]
+    expected = [min(0.01 * 2**k, 0.08) for k in range(len(gaps))]
+    assert all(g >= e * 0.95 for g, e in zip(gaps, expected, strict=True)), (gaps, expected)
+    assert link.stats.reconnects == 0
+
+
+def _garbage_server(reply: bytes, stop: threading.Event) -> tuple[socket.socket, threading.Thread]:
+    lsock = socket.socket()
+    lsock.bind(("127.0.0.1", 0))
+    lsock.listen(4)
+    lsock.settimeout(0.05)
+
+    def serve():
+        while not stop.is_set():
+            try:
+                conn, _ = lsock.accept()
+            except TimeoutError:
+                continue
+            with conn:
+                conn.settimeout(0.5)
+                try:
+                    if conn.recv(1024):
+                        conn.sendall(reply)
+                    conn.recv(1024)
+                except OSError:
+                    pass
+
+    t = threading.Thread(target=serve)
+    t.start()
+    return lsock, t
+
+
+@pytest.mark.parametrize("reply", [
+    pack_reply(999, 0, "100", True, True),               # wrong msg_id
+    struct.pack("!HHBH3s3s", 1, 7, 0, 3, b"100", b"\x00\x01\x01"),  # body_len fits no variant
+    b"\xff" * 12,                                        # noise
+])
+def test_client_counts_bad_replies_and_keeps_running(reply):
+    stop = threading.Event()
+    lsock, t = _garbage_server(reply, stop)
+    link = KvpClient(*lsock.getsockname(), timeout=0.2, backoff_initial_s=0.01, backoff_max_s=0.05)
+    try:
+        assert wait_for(lambda: link.stats.malformed >= 2)
+        assert link.set_override(30).percent == 30
+        assert link.read_override() is None
+    finally:
+        link.close()
+        stop.set()
+        t.join()
+        lsock.close()
