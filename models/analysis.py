@@ -184,7 +184,7 @@ OUTPUTS = (
     "force_o", "force_base", "alpha", "beta", "gamma", "k_pxo", "k_px", "k_py", "k_max", "k_min",
     "k_p", "a", "eig_re", "eig_im", "tr", "det", "disc", "margin", "stable", "gamma_margin",
     "stiffness", "compliance", "deflection", "omega2", "tool_axis_angle", "plane", "tcp_position",
-    "tool_axis", "feed_per_tooth", "principal_values", "principal_directions",
+    "tool_axis", "feed_per_tooth", "principal_values", "principal_directions", "power",
 )
 
 
@@ -210,6 +210,7 @@ def _build_outputs(robot: Robot, process_model: str, mass_model: str) -> tuple[l
     c = cutting.feed_per_tooth(feed, flutes, c_("spindle_speed") * 60.0 / (2.0 * np.pi))
 
     f_o = cutting.average_force(c, a_e, a_p, mode, flutes, radius, coeffs)
+    power = cutting.average_torque(c, a_e, a_p, mode, flutes, radius, coeffs) * c_("spindle_speed")
     f_base = x_o * f_o[0] + y_o * f_o[1] + z_o * f_o[2]
     ks = cutting.cutting_stiffness(c, a_e, a_p, mode, flutes, radius, coeffs)
     alpha = ks["alpha"]
@@ -273,7 +274,7 @@ def _build_outputs(robot: Robot, process_model: str, mass_model: str) -> tuple[l
         "compliance": c_tt, "deflection": deflection, "omega2": omega2,
         "tool_axis_angle": tool_axis_angle, "plane": plane, "tcp_position": tcp_pos,
         "tool_axis": tool_axis, "feed_per_tooth": c, "principal_values": principal_values,
-        "principal_directions": principal_directions,
+        "principal_directions": principal_directions, "power": power,
     }
     return [q, cut, feed, params], values
 

@@ -43,6 +43,7 @@ __all__ = [
     "available_materials",
     "available_tools",
     "average_force",
+    "average_torque",
     "cutting_stiffness",
     "edge_forces",
     "feed_per_tooth",
@@ -443,6 +444,23 @@ def average_force(
     st_x, st_y, st_z = _brackets(phi_st, c, k)
     scale = flutes * a_p / (8.0 * ca.pi)
     return ca.vertcat(scale * (ex_x - st_x), 4.0 * scale * (ex_y - st_y), scale * (ex_z - st_z))
+
+
+def average_torque(
+    c: Scalar, a_e: Scalar, a_p: Scalar, mode: Any, flutes: Scalar, radius: Scalar, coeffs: Any
+) -> Any:
+    """Tooth-period average cutting torque about the tool axis [N·m] (spindle load).
+
+    Each engaged edge carries the tangential force F_t = K_tc b h + K_te b (h = c sin φ) at the
+    radius R, so T̄ = (N/2π) ∫ R F_t dφ over [φ_st, φ_ex] with b = a_p:
+    T̄ = (N a_p R / 2π) [K_tc c (cos φ_st − cos φ_ex) + K_te (φ_ex − φ_st)].
+    The spindle power is T̄ Ω. Arguments as :func:`average_force`.
+    """
+    k = _coefficients(coeffs)
+    phi_st, phi_ex = immersion_angles(a_e, radius, mode)
+    k_tc, k_te = k[0], k[3]
+    return (flutes * a_p * radius / (2.0 * ca.pi)) * (
+        k_tc * c * (ca.cos(phi_st) - ca.cos(phi_ex)) + k_te * (phi_ex - phi_st))
 
 
 # --------------------------------------------------------------------------------------------------

@@ -51,6 +51,7 @@ __all__ = [
     "ModelSection",
     "KEY_DOCS",
     "PathSection",
+    "PlanSection",
     "SpindleSection",
     "StockSection",
     "ToolSection",
@@ -139,6 +140,10 @@ class LimitsSection(_Section):
     feed_max_mm_s: PosFloat = 50.0
     feed_change_max_mm_s: PosFloat | None = None
     margin_min_n_per_m: NonNegFloat = 0.0
+    section_length_min_mm: PosFloat = 10.0
+    path_acc_max_m_s2: PosFloat = 1.0
+    path_jerk_max_m_s3: PosFloat = 10.0
+    rapid_mm_s: PosFloat = 250.0
 
     @model_validator(mode="after")
     def _feed_range(self) -> LimitsSection:
@@ -199,6 +204,15 @@ class ModelSection(_Section):
     cct: bool = True
 
 
+class PlanSection(_Section):
+    """``[plan]``: how ``cctmill plan`` chooses sections and feeds."""
+
+    method: Literal["optimize", "thesis", "constant"] = "optimize"
+    safety_factor: Annotated[float, Field(ge=1.0, allow_inf_nan=False)] = 1.1
+    thesis_section_length_mm: PosFloat = 100.0
+    section_change_cost_s: NonNegFloat = 0.02
+
+
 class PathSection(_Section):
     """``[path]``: sampling of the toolpath."""
 
@@ -226,6 +240,7 @@ class Job(_Section):
     limits: LimitsSection = LimitsSection()
     engagement: EngagementSection
     model: ModelSection = ModelSection()
+    plan: PlanSection = PlanSection()
     path: PathSection = PathSection()
     kinematics: KinematicsSection = KinematicsSection()
     folder: str = "."
@@ -269,6 +284,10 @@ KEY_DOCS: dict[str, str] = {
     "limits.feed_max_mm_s": "highest feed a section may get [mm/s]",
     "limits.feed_change_max_mm_s": "largest feed change between neighbouring sections [mm/s]",
     "limits.margin_min_n_per_m": "required chatter stability margin [N/m]",
+    "limits.section_length_min_mm": "shortest section the planner may make [mm]",
+    "limits.path_acc_max_m_s2": "path acceleration of feed transitions [m/s²] (ruckig)",
+    "limits.path_jerk_max_m_s3": "path jerk of feed transitions [m/s³] (ruckig)",
+    "limits.rapid_mm_s": "path speed bound on rapid (G0) moves [mm/s]; the joints limit it further",
     "engagement.source": "fixed (per operation, below) or stock (2.5-D stock model)",
     "engagement.ae_mm": "radial depth of cut [mm] (fixed)",
     "engagement.ap_mm": "axial depth of cut [mm] (fixed)",
@@ -284,6 +303,11 @@ KEY_DOCS: dict[str, str] = {
     "model.gamma_window_deg": "calibrated [γ_lo, γ_hi] for gamma_window [deg]",
     "model.process_gain": "multiplies the process stiffness K_p (calibration)",
     "model.cct": "include the force-dependent CCT stiffness term",
+    "plan.method": "optimize (CasADi + IPOPT), thesis (SPEC §8 section algorithm) or constant",
+    "plan.safety_factor": "thesis method: f_real = f_max / safety_factor",
+    "plan.thesis_section_length_mm": "thesis method: the initial section length L_s [mm]",
+    "plan.section_change_cost_s": "optimize: time-equivalent cost of a feed change of feed_max "
+                                  "[s] (fewer, longer sections)",
     "path.chord_tol_mm": "largest arc chord error [mm]",
     "path.step_max_mm": "largest distance between path samples [mm]",
     "kinematics.seed_joints_deg": "joint angles to start the first IK solve from [deg]",
@@ -329,7 +353,7 @@ def frame_matrix(xyz_mm, abc_deg) -> np.ndarray:
 
 _MODELS = {"job": JobSection, "cell": CellSection, "tool": ToolSection,
            "spindle": SpindleSection, "limits": LimitsSection, "engagement": EngagementSection,
-           "model": ModelSection, "path": PathSection, "kinematics": KinematicsSection,
+           "model": ModelSection, "plan": PlanSection, "path": PathSection, "kinematics": KinematicsSection,
            "stock": StockSection}
 
 

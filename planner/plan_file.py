@@ -35,7 +35,7 @@ and the online supervisor (``cctmill supervise``). Units are in the key names (t
 
     s_m (n,)  q_rad (n, 6)  position_wp_m (n, 3)  abc_wp_deg (n, 3)  tool_axis_wp (n, 3)
     section (n,) int  kind (n,) int (0 cut, 1 air, 2 rapid)  arc (n,) bool  move (n,) int
-    line (n,) int  file (n,) int  feed_mm_s (n,) planned  speed_mm_s (n,) timed  time_s (n,)
+    line (n,) int  source_file (n,) int (index into plan.json's ``files``)  feed_mm_s (n,) planned  speed_mm_s (n,) timed  time_s (n,)
     force_N (n,)  deflection_mm (n,)  deflection_wp_m (n, 3)  deflection_normal_mm (n,)
     gamma_deg (n,)  margin_N_per_m (n,)  power_kW (n,)  a_e_m (n,)  a_p_m (n,)  mode (n,) int
 
@@ -78,7 +78,7 @@ KINDS = ("cut", "air", "rapid")
 #: Arrays every ``samples.npz`` holds, with their trailing shape.
 SAMPLE_ARRAYS: dict[str, tuple[int, ...]] = {
     "s_m": (), "q_rad": (6,), "position_wp_m": (3,), "abc_wp_deg": (3,), "tool_axis_wp": (3,),
-    "section": (), "kind": (), "arc": (), "move": (), "line": (), "file": (), "feed_mm_s": (),
+    "section": (), "kind": (), "arc": (), "move": (), "line": (), "source_file": (), "feed_mm_s": (),
     "speed_mm_s": (), "time_s": (), "force_N": (), "deflection_mm": (), "deflection_wp_m": (3,),
     "deflection_normal_mm": (), "gamma_deg": (), "margin_N_per_m": (), "power_kW": (),
     "a_e_m": (), "a_p_m": (), "mode": (),

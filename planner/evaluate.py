@@ -1,0 +1,336 @@
+"""The point model along the path: every quantity of every engaged sample, as a function of feed.
+
+:class:`PathModel` binds the prepared job (joints, cutting frame and engagement per sample) to the
+mapped CasADi point Function of the physics core (:func:`models.analysis.point_function`) and
+evaluates it for any per-sample feeds in one call: force, static deflection (and its component
+normal to the machined wall), γ, the chatter margin, the spindle power.
+
+:meth:`PathModel.ceilings` turns the constraints of SPEC §8 into one number per sample: the
+**feed ceiling**, the largest feed at which the sample meets every limit — chatter margin ≥ the
+required margin, resultant force ≤ the force limit, ‖δ‖ ≤ the deflection tolerance, spindle power ≤
+its limit — *and every feed below it does too* (the feed limit of the stability characteristic,
+SPEC §5 step 7). It is found on a log-spaced feed grid and refined by bisection, every evaluation
+with the full CCT model. Force, deflection and power grow with feed; the margin of the ``thesis``
+process model falls with it and that of the ``oriented`` model hardly changes, so the constraints
+are monotone in feed and a ceiling represents them exactly; the grid catches a constraint that
+fails and recovers between two grid feeds only if it fails at a grid feed. The independent checker
+(:mod:`planner.check`) re-evaluates every planned sample, so the plan never relies on this
+assumption unseen.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from models.analysis import ModelParameters, point_function
+from models.cutting import MILLING_MODES, load_material
+from models.errors import InputError
+from planner.job import Job
+from planner.prepare import Prepared
+
+__all__ = [
+    "BISECTION_STEPS",
+    "CONSTRAINTS",
+    "FEED_GRID",
+    "Ceilings",
+    "Evaluation",
+    "Limits",
+    "PathModel",
+    "model_parameters",
+]
+
+#: The process constraints checked at every engaged sample, in reporting order.
+CONSTRAINTS = ("chatter", "force", "deflection", "power")
+#: Feeds of the coarse grid, log-spaced over [feed_min, feed_max] [-]. 2.1× apart for the
+#: default 0.5…40 mm/s range; the bisection below refines inside one interval.
+FEED_GRID = 7
+#: Bisection steps in log-feed inside the first failing grid interval: 2.1^(1/2^10) − 1 ≈ 0.07 %
+#: resolution of the ceiling (the ceiling is the feasible end of the final bracket).
+BISECTION_STEPS = 10
+#: Outputs of the point Function the planner needs (a smaller graph is faster).
+_OUTPUTS = ("force_o", "force_base", "deflection", "margin", "stable", "gamma", "gamma_margin",
+            "power", "omega2")
+
+
+@dataclass(frozen=True)
+class Limits:
+    """What no sample may exceed, SI (from the job's ``[limits]`` and ``[spindle]``).
+
+    Attributes:
+        force_max: resultant average cutting force [N].
+        deflection_tol: ‖δ‖ at the TCP [m].
+        power_max: spindle power [W].
+        feed_min, feed_max: feed bounds [m/s].
+        feed_change_max: largest feed change between neighbouring cut sections [m/s] (None: free).
+        margin_min: required chatter stability margin [N/m] (eigen criterion).
+        section_length_min: shortest section [m].
+        path_acc_max: path acceleration of feed transitions [m/s²].
+        path_jerk_max: path jerk of feed transitions [m/s³].
+        rapid_speed: path-speed bound on rapid moves [m/s].
+    """
+
+    force_max: float
+    deflection_tol: float
+    power_max: float
+    feed_min: float
+    feed_max: float
+    feed_change_max: float | None
+    margin_min: float
+    section_length_min: float
+    path_acc_max: float
+    path_jerk_max: float
+    rapid_speed: float
+
+    @classmethod
+    def from_job(cls, job: Job) -> Limits:
+        lim = job.limits
+        return cls(force_max=lim.force_max_n, deflection_tol=lim.deflection_tol_mm * 1e-3,
+                   power_max=job.spindle.power_max_kw * 1e3, feed_min=lim.feed_min_mm_s * 1e-3,
+                   feed_max=lim.feed_max_mm_s * 1e-3,
+                   feed_change_max=(None if lim.feed_change_max_mm_s is None
+                                    else lim.feed_change_max_mm_s * 1e-3),
+                   margin_min=lim.margin_min_n_per_m,
+                   section_length_min=lim.section_length_min_mm * 1e-3,
+                   path_acc_max=lim.path_acc_max_m_s2, path_jerk_max=lim.path_jerk_max_m_s3,
+                   rapid_speed=lim.rapid_mm_s * 1e-3)
+
+    def as_json(self, safety_factor: float) -> dict:
+        """The ``constraints`` object of plan.json (units in the names)."""
+        return {
+            "force_max_N": self.force_max, "deflection_tol_mm": self.deflection_tol * 1e3,
+            "power_max_kW": self.power_max * 1e-3, "feed_min_mm_s": self.feed_min * 1e3,
+            "feed_max_mm_s": self.feed_max * 1e3,
+            "feed_change_max_mm_s": (None if self.feed_change_max is None
+                                     else self.feed_change_max * 1e3),
+            "margin_min_N_per_m": self.margin_min,
+            "section_length_min_mm": self.section_length_min * 1e3,
+            "path_acc_max_m_s2": self.path_acc_max, "path_jerk_max_m_s3": self.path_jerk_max,
+            "rapid_mm_s": self.rapid_speed * 1e3, "safety_factor": safety_factor,
+        }
+
+
+def model_parameters(job: Job, prep: Prepared) -> ModelParameters:
+    """The point-model parameters a job asks for (robot data, material, calibration knobs)."""
+    robot = prep.robot
+    spindle = job.spindle
+    return ModelParameters(
+        joint_stiffness=robot.data.joint_stiffness * job.cell.joint_stiffness_scale,
+        coefficients=load_material(job.material).coefficients(), cct=job.model.cct,
+        process_gain=job.model.process_gain, tcp=np.asarray(job.cell.tcp_mm) * 1e-3,
+        gamma_window=tuple(np.radians(job.model.gamma_window_deg)),
+        spindle_mass=robot.data.spindle_mass if spindle.mass_kg is None else spindle.mass_kg,
+        spindle_com=(robot.data.spindle_com if spindle.com_mm is None
+                     else np.asarray(spindle.com_mm) * 1e-3))
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """The point model at one feed per engaged sample. SI; ``m`` engaged samples.
+
+    Attributes:
+        feed: [m/s], (m,).
+        force: resultant average force [N], (m,).
+        force_base: average force in base axes [N], (m, 3).
+        deflection: static TCP deflection δ = C_tt F̄ in base axes [m], (m, 3).
+        deflection_norm: ‖δ‖ [m], (m,).
+        deflection_normal: δ · X_o, the part normal to the machined wall [m], (m,) (signed:
+            positive along +X_o).
+        gamma: [rad], (m,).
+        margin: eigen stability margin [N/m], (m,).
+        gamma_margin: distance of γ inside the calibrated window [rad], (m,).
+        stable: verdict of the job's criterion, (m,) bool.
+        power: spindle power [W], (m,).
+        natural_frequencies: 2-DOF natural frequencies [Hz], (m, 2); NaN for isotropic mass.
+        ok: per constraint of :data:`CONSTRAINTS`, (m, 4) bool.
+    """
+
+    feed: np.ndarray
+    force: np.ndarray
+    force_base: np.ndarray
+    deflection: np.ndarray
+    deflection_norm: np.ndarray
+    deflection_normal: np.ndarray
+    gamma: np.ndarray
+    margin: np.ndarray
+    gamma_margin: np.ndarray
+    stable: np.ndarray
+    power: np.ndarray
+    natural_frequencies: np.ndarray
+    ok: np.ndarray
+
+    @property
+    def all_ok(self) -> np.ndarray:
+        """(m,) bool: every constraint holds."""
+        return np.all(self.ok, axis=1)
+
+
+@dataclass(frozen=True)
+class Ceilings:
+    """Per engaged sample, the feed ceiling and what sets it.
+
+    Attributes:
+        feed: the ceiling [m/s], (m,); ``feed_max`` where nothing binds inside the range, and
+            ``feed_min`` (with ``floor_violation`` set) where even the lowest feed fails.
+        binding: what stops the feed from rising, (m,) str: a constraint name or ``"feed_max"``.
+        floor_violation: (m,) str, ``""`` or the constraint that fails at ``feed_min``.
+        evaluations: number of mapped evaluations spent.
+    """
+
+    feed: np.ndarray
+    binding: np.ndarray
+    floor_violation: np.ndarray
+    evaluations: int
+
+
+class PathModel:
+    """The physics core mapped over the engaged samples of a prepared job.
+
+    Args:
+        prep: the prepared job (joints, engagement).
+        params: model parameters (default: :func:`model_parameters` of the job).
+        limits: the limits (default: from the job).
+        threads: worker threads of the mapped Function.
+    """
+
+    def __init__(self, prep: Prepared, params: ModelParameters | None = None,
+                 limits: Limits | None = None, threads: int = 2) -> None:
+        job = prep.job
+        self.prep = prep
+        self.params = params or model_parameters(job, prep)
+        self.limits = limits or Limits.from_job(job)
+        self.criterion = job.model.chatter_criterion
+        if self.criterion not in ("eigen", "gamma_window"):
+            raise InputError("model.chatter_criterion",
+                             f"the planner does not support {self.criterion!r} yet; use eigen or "
+                             "gamma_window")
+        self.process_model = job.model.process_model
+        self.mass_model = job.model.mass_model
+        self.threads = threads
+        e = prep.engagement
+        cutting = prep.path.cutting & (e.mode >= 0) & prep.kinematics.reachable
+        #: indices of the engaged samples into the path, (m,).
+        self.index = np.flatnonzero(cutting)
+        feed_dir = e.feed_dir if e.feed_dir is not None else prep.path.feed_dir
+        tool = prep.tool
+        rpm = job.spindle.rpm
+        self.spindle_speed = rpm * 2.0 * np.pi / 60.0
+        self.tooth_frequency = tool.flutes * rpm / 60.0
+        i = self.index
+        m = i.size
+        self.radial_dir = e.radial_dir[i]
+        self.cut = np.vstack([feed_dir[i].T, e.radial_dir[i].T, e.a_e[i], e.a_p[i],
+                              e.mode[i].astype(float), np.full(m, self.spindle_speed),
+                              np.full(m, float(tool.flutes)), np.full(m, tool.radius)])
+        self.q = prep.kinematics.q[i].T
+        self.function = point_function(prep.robot, self.process_model, self.mass_model, _OUTPUTS)
+        self._param_vec = self.params.vector()
+        self._maps: dict[int, ca.Function] = {}
+        self.evaluations = 0
+
+    def __len__(self) -> int:
+        return int(self.index.size)
+
+    def _mapped(self, n: int) -> ca.Function:
+        if n not in self._maps:
+            self._maps[n] = self.function.map(n, "thread", self.threads) if n > 1 else self.function
+        return self._maps[n]
+
+    def evaluate(self, feeds: np.ndarray, subset: np.ndarray | None = None) -> Evaluation:
+        """The model at ``feeds`` [m/s], one per engaged sample (or per ``subset`` entry).
+
+        Args:
+            feeds: (m,) or (k,) with ``subset``.
+            subset: indices into the engaged samples (default all).
+        """
+        sel = np.arange(len(self)) if subset is None else np.asarray(subset, int)
+        feeds = np.asarray(feeds, float).reshape(-1)
+        if feeds.size != sel.size:
+            raise InputError("feeds", f"need {sel.size} feeds, got {feeds.size}")
+        if sel.size and not (np.all(np.isfinite(feeds)) and np.all(feeds > 0)):
+            raise InputError("feeds", "every feed must be positive and finite")
+        n = sel.size
+        if n == 0:
+            z = np.zeros(0)
+            return Evaluation(z, z, np.zeros((0, 3)), np.zeros((0, 3)), z, z, z, z, z,
+                              np.zeros(0, bool), z, np.zeros((0, 2)), np.zeros((0, 4), bool))
+        res = self._mapped(n)(q=self.q[:, sel], cut=self.cut[:, sel], feed=feeds.reshape(1, -1),
+                              params=self._param_vec)
+        self.evaluations += 1
+        r = {k: np.asarray(v, float) for k, v in res.items()}
+        force_o = r["force_o"].reshape(3, n)
+        force = np.linalg.norm(force_o, axis=0)
+        defl = r["deflection"].reshape(3, n).T
+        margin = r["margin"].reshape(n)
+        gamma_margin = r["gamma_margin"].reshape(n)
+        if self.criterion == "gamma_window":
+            stable = gamma_margin > 0.0
+            chatter_ok = stable
+        else:
+            stable = r["stable"].reshape(n) > 0.5
+            chatter_ok = stable & (margin >= self.limits.margin_min)
+        power = r["power"].reshape(n)
+        dnorm = np.linalg.norm(defl, axis=1)
+        lim = self.limits
+        ok = np.column_stack([chatter_ok, force <= lim.force_max, dnorm <= lim.deflection_tol,
+                              power <= lim.power_max])
+        if self.mass_model == "robot":
+            freqs = np.sqrt(np.maximum(r["omega2"].reshape(2, n).T, 0.0)) / (2.0 * np.pi)
+        else:
+            freqs = np.full((n, 2), np.nan)
+        return Evaluation(
+            feed=feeds, force=force, force_base=r["force_base"].reshape(3, n).T, deflection=defl,
+            deflection_norm=dnorm, deflection_normal=np.einsum("ij,ij->i", defl, self.radial_dir[sel]),
+            gamma=r["gamma"].reshape(n), margin=margin, gamma_margin=gamma_margin, stable=stable,
+            power=power, natural_frequencies=freqs, ok=ok)
+
+    def ceilings(self) -> Ceilings:
+        """The feed ceiling of every engaged sample (module docstring)."""
+        lim = self.limits
+        m = len(self)
+        start = self.evaluations
+        grid = np.geomspace(lim.feed_min, lim.feed_max, FEED_GRID)
+        first_bad = np.full(m, FEED_GRID)
+        floor = np.full(m, "", dtype=object)
+        for j, f in enumerate(grid):
+            open_ = np.flatnonzero(first_bad == FEED_GRID)
+            if open_.size == 0:
+                break
+            ev = self.evaluate(np.full(open_.size, f), open_)
+            bad = ~ev.all_ok
+            first_bad[open_[bad]] = j
+            if j == 0:
+                for k in np.flatnonzero(bad):
+                    floor[open_[k]] = CONSTRAINTS[int(np.argmin(ev.ok[k]))]
+        feed = np.where(first_bad == FEED_GRID, lim.feed_max, lim.feed_min)
+        binding = np.where(first_bad == FEED_GRID, "feed_max", "").astype(object)
+        for k in np.flatnonzero(first_bad == 0):
+            binding[k] = floor[k]
+        refine = np.flatnonzero((first_bad > 0) & (first_bad < FEED_GRID))
+        if refine.size:
+            lo = np.log(grid[first_bad[refine] - 1])
+            hi = np.log(grid[first_bad[refine]])
+            why = np.full(refine.size, -1)
+            for _ in range(BISECTION_STEPS):
+                mid = 0.5 * (lo + hi)
+                ev = self.evaluate(np.exp(mid), refine)
+                good = ev.all_ok
+                lo = np.where(good, mid, lo)
+                hi = np.where(good, hi, mid)
+                why = np.where(good, why, np.argmin(ev.ok, axis=1))
+            unknown = why < 0  # never failed inside: the grid point's failure names it
+            if np.any(unknown):
+                ev = self.evaluate(np.exp(hi[unknown]), refine[unknown])
+                why[unknown] = np.argmin(ev.ok, axis=1)
+            feed[refine] = np.exp(lo)
+            for k, w in zip(refine, why, strict=True):
+                binding[k] = CONSTRAINTS[int(w)]
+        return Ceilings(feed=feed, binding=binding.astype(str), floor_violation=floor.astype(str),
+                        evaluations=self.evaluations - start)
+
+    def mode_name(self, k: int) -> str:
+        """Milling mode of engaged sample ``k``."""
+        codes = {v: n for n, v in MILLING_MODES.items()}
+        return codes[int(self.cut[8, k])]

@@ -1,0 +1,450 @@
+"""Plan a job: feed ceilings, sections and feeds (optimize / thesis / constant), timing, plan file.
+
+:func:`plan_job` is the library face of ``cctmill plan``::
+
+    job = load_job("job.toml")
+    result = plan_job(job, method="optimize")      # raises on an infeasible or unsolved plan
+    write_plan_outputs(result, "out/")             # plan.json, samples.npz, report.html, PNGs
+
+Every sample of the path gets a kind (cut / air / rapid, :mod:`planner.sections`). ``cut`` samples
+are evaluated with the full point model (:mod:`planner.evaluate`); their feed ceilings feed the
+chosen method:
+
+* ``optimize`` — CasADi + IPOPT (:mod:`planner.optimize`), warm-started from the thesis baseline;
+* ``thesis`` — the thesis's section algorithm (:mod:`planner.thesis`);
+* ``constant`` — one feed for the whole cut: the lowest ceiling (the safe constant feed).
+
+``air`` sections run at ``feed_max`` (plunges keep their programmed feed, capped), ``rapid``
+sections at ``rapid_mm_s``. toppra and ruckig then time the path (:mod:`planner.timing`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from models.errors import CctmillError
+from planner.evaluate import CONSTRAINTS, Ceilings, Evaluation, Limits, PathModel
+from planner.job import Job
+from planner.optimize import SolveResult, optimize_sections
+from planner.plan_file import KINDS, write_plan
+from planner.prepare import Prepared, prepare
+from planner.sections import (
+    AIR,
+    CUT,
+    RAPID,
+    Section,
+    kind_runs,
+    sample_kinds,
+    section_of_samples,
+    split_by_length,
+    step_lengths,
+)
+from planner.thesis import thesis_sections
+from planner.timing import Timing, time_path
+
+__all__ = [
+    "CHARACTERISTIC_FEEDS",
+    "METHODS",
+    "PlanInfeasibleError",
+    "PlanResult",
+    "ROBOT_SECTION",
+    "plan_document",
+    "plan_job",
+    "plan_prepared",
+    "summary",
+    "write_plan_outputs",
+]
+
+METHODS = ("optimize", "thesis", "constant")
+#: A section whose timed mean speed falls below this fraction of its feed is robot-limited [-].
+ROBOT_SECTION = 0.9
+#: Feeds of each cut section's stored stability characteristic (log-spaced over the feed range).
+CHARACTERISTIC_FEEDS = 25
+
+
+class PlanInfeasibleError(CctmillError):
+    """No feed meets the limits somewhere on the path.
+
+    Attributes:
+        section: index of the section (cell of ``section_length_min``) that cannot be planned.
+        constraint: the constraint that fails at the lowest feed.
+        sample: the first failing sample.
+    """
+
+    def __init__(self, message: str, section: int, constraint: str, sample: int) -> None:
+        self.section = section
+        self.constraint = constraint
+        self.sample = sample
+        super().__init__(message)
+
+
+@dataclass
+class PlanResult:
+    """A finished plan, in memory (SI). :func:`write_plan_outputs` writes it.
+
+    Attributes:
+        method: the method used.
+        prep: the prepared job.
+        model: the path model (its ``index`` are the cut samples).
+        ceilings: feed ceilings of the cut samples.
+        sections: the sections in path order (all kinds).
+        feed: planned path-speed bound per sample [m/s], (n,).
+        kinds: kind code per sample, (n,).
+        evaluation: the model at the planned feeds (cut samples).
+        timing: toppra/ruckig timing.
+        solver: the solver record.
+        limits: the limits used.
+        safety_factor: the thesis safety factor used.
+        wall_times: wall time of each stage [s].
+        section_rows: the plan.json ``sections`` list.
+    """
+
+    method: str
+    prep: Prepared
+    model: PathModel
+    ceilings: Ceilings
+    sections: list[Section]
+    feed: np.ndarray
+    kinds: np.ndarray
+    evaluation: Evaluation
+    timing: Timing
+    solver: SolveResult
+    limits: Limits
+    safety_factor: float
+    wall_times: dict[str, float] = field(default_factory=dict)
+    section_rows: list[dict[str, Any]] = field(default_factory=list)
+
+    @property
+    def cycle_time(self) -> float:
+        """toppra-timed cycle [s]."""
+        return self.timing.cycle_time
+
+    @property
+    def process_time(self) -> float:
+        """Σ ds/feed over feed moves (no robot limits) [s]."""
+        ds = step_lengths(self.prep.path.s)
+        sel = self.kinds != RAPID
+        return float(np.sum(ds[sel] / self.feed[sel]))
+
+
+def _ceiling_arrays(n: int, model: PathModel, ceil: Ceilings) -> tuple[np.ndarray, np.ndarray]:
+    c = np.full(n, np.nan)
+    b = np.full(n, "", dtype=object)
+    c[model.index] = ceil.feed
+    b[model.index] = ceil.binding
+    return c, b.astype(str)
+
+
+def _check_floor(prep: Prepared, model: PathModel, ceil: Ceilings, runs, ds, limits: Limits) -> None:
+    bad = np.flatnonzero(ceil.floor_violation != "")
+    if bad.size == 0:
+        return
+    k = int(bad[0])
+    sample = int(model.index[k])
+    cells = [c for a, b, kind in runs if kind == CUT for c in split_by_length(ds, a, b,
+                                                                          limits.section_length_min)]
+    cell = next(i for i, (a, b) in enumerate(cells) if a <= sample < b)
+    what = str(ceil.floor_violation[k])
+    ev = model.evaluate(np.array([limits.feed_min]), np.array([k]))
+    detail = {
+        "force": f"{ev.force[0]:.1f} N > force_max_n {limits.force_max:.1f} N (the edge forces "
+                 "alone exceed it: raise the limit or cut shallower)",
+        "deflection": f"{ev.deflection_norm[0] * 1e3:.3f} mm > deflection_tol_mm "
+                      f"{limits.deflection_tol * 1e3:.3f} mm (raise the tolerance, cut shallower "
+                      "or move the part where the arm is stiffer)",
+        "power": f"{ev.power[0] * 1e-3:.2f} kW > power_max_kw {limits.power_max * 1e-3:.2f} kW",
+        "chatter": f"margin {ev.margin[0]:.3g} N/m below the required "
+                   f"{limits.margin_min:.3g} N/m at every feed (change the pose, the tool "
+                   "rotation or the depths of cut)",
+    }[what]
+    e = prep.engagement
+    p = prep.path
+    n_bad = bad.size
+    raise PlanInfeasibleError(
+        f"section {cell} (s {p.s[cells[cell][0]]:.3f}-{p.s[cells[cell][1] - 1]:.3f} m, "
+        f"{p.where(sample)}): {what} limit cannot be met even at feed_min_mm_s "
+        f"{limits.feed_min * 1e3:g}: {detail}; a_e {e.a_e[sample] * 1e3:.2f} mm, a_p "
+        f"{e.a_p[sample] * 1e3:.2f} mm ({n_bad} sample{'s' if n_bad > 1 else ''} affected)",
+        section=cell, constraint=what, sample=sample)
+
+
+def _other_sections(runs, prep: Prepared, limits: Limits) -> list[Section]:
+    out = []
+    plunge = prep.engagement.plunge
+    prog = prep.path.feed
+    for a, b, kind in runs:
+        if kind == RAPID:
+            out.append(Section(a, b, RAPID, limits.rapid_speed, "feed_max", "rapid move"))
+        elif kind == AIR:
+            feed, note = limits.feed_max, "not engaged: feed_max"
+            if plunge is not None and np.any(plunge[a:b]):
+                f = prog[a:b][plunge[a:b]]
+                f = f[np.isfinite(f)]
+                if f.size:
+                    feed = float(np.clip(f.min(), limits.feed_min, limits.feed_max))
+                    note = "plunge (not modelled): programmed feed kept"
+            out.append(Section(a, b, AIR, feed, "feed_max", note))
+    return out
+
+
+def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float | None = None,
+                  limits: Limits | None = None, f_ref: float | None = None) -> PlanResult:
+    """Plan an already prepared job (see :func:`plan_job`)."""
+    if method not in METHODS:
+        raise CctmillError(f"--method: {method!r} is not one of {', '.join(METHODS)}")
+    job = prep.job
+    sf = job.plan.safety_factor if safety_factor is None else float(safety_factor)
+    if not (np.isfinite(sf) and sf >= 1.0):
+        raise CctmillError(f"--safety-factor: must be a number >= 1, got {sf}")
+    walls: dict[str, float] = {}
+    t = time.perf_counter()
+    prep.kinematics.raise_if_unreachable()
+    model = PathModel(prep, limits=limits)
+    limits = model.limits
+    ceil = model.ceilings()
+    walls["ceilings_s"] = time.perf_counter() - t
+    path = prep.path
+    n = len(path)
+    ds = step_lengths(path.s)
+    kinds = sample_kinds(n, model.index, path.cutting)
+    runs = kind_runs(kinds)
+    _check_floor(prep, model, ceil, runs, ds, limits)
+    ceiling, binding = _ceiling_arrays(n, model, ceil)
+    pos = np.full(n, -1)
+    pos[model.index] = np.arange(len(model))
+
+    def gamma_at(samples: np.ndarray, feeds: np.ndarray) -> np.ndarray:
+        return model.evaluate(feeds, pos[samples]).gamma
+
+    t = time.perf_counter()
+    solver = SolveResult("n/a", True, 0, 0.0, 0.0, 0.0)
+    if method == "constant":
+        f = float(np.nanmin(ceiling)) if len(model) else limits.feed_max
+        tight = int(np.nanargmin(ceiling)) if len(model) else 0
+        cut = [Section(a, b, CUT, f, str(binding[tight]) if len(model) else "feed_max",
+                       "one feed for the whole cut: the lowest ceiling")
+               for a, b, kind in runs if kind == CUT]
+    else:
+        cut = thesis_sections(runs, path.s, ceiling, binding, gamma_at,
+                              job.plan.thesis_section_length_mm * 1e-3, limits.section_length_min,
+                              sf, limits.feed_min)
+        if method == "optimize":
+            warm = np.full(n, np.nan)
+            for sec in cut:
+                warm[sec.start:sec.stop] = sec.feed
+            cut, solver = optimize_sections(
+                runs, ds, ceiling, binding, limits.feed_min, limits.feed_max,
+                limits.section_length_min, limits.feed_change_max,
+                job.plan.section_change_cost_s, warm=warm, f_ref=f_ref)
+    walls["sections_s"] = time.perf_counter() - t
+    sections = sorted(cut + _other_sections(runs, prep, limits), key=lambda x: x.start)
+    feed = np.empty(n)
+    for sec in sections:
+        feed[sec.start:sec.stop] = sec.feed
+    t = time.perf_counter()
+    evaluation = model.evaluate(feed[model.index])
+    walls["evaluation_s"] = time.perf_counter() - t
+    data = prep.robot.data
+    timing = time_path(path.s, prep.kinematics.q, feed, data.velocity, data.acceleration,
+                       limits.path_acc_max, limits.path_jerk_max)
+    walls["timing_s"] = timing.compute_time
+    result = PlanResult(method=method, prep=prep, model=model, ceilings=ceil, sections=sections,
+                        feed=feed, kinds=kinds, evaluation=evaluation, timing=timing,
+                        solver=solver, limits=limits, safety_factor=sf, wall_times=walls)
+    t = time.perf_counter()
+    result.section_rows = _section_rows(result, ceiling, pos)
+    walls["report_rows_s"] = time.perf_counter() - t
+    return result
+
+
+def plan_job(job: Job, method: str | None = None, safety_factor: float | None = None,
+             progress: bool = False) -> PlanResult:
+    """Prepare and plan a job.
+
+    Args:
+        job: the validated job.
+        method: ``optimize``, ``thesis`` or ``constant`` (default: the job's ``[plan] method``).
+        safety_factor: the thesis safety factor (default: the job's).
+        progress: show progress on stderr.
+
+    Raises:
+        PlanInfeasibleError: a limit cannot be met at any feed (names the section and constraint).
+        PlanSolverError: IPOPT did not converge.
+        UnreachablePoseError: a sample cannot be reached.
+    """
+    t = time.perf_counter()
+    prep = prepare(job, progress=progress)
+    prep_time = time.perf_counter() - t
+    result = plan_prepared(prep, method or job.plan.method, safety_factor)
+    result.wall_times = {"prepare_s": prep_time, **result.wall_times}
+    return result
+
+
+def _section_rows(res: PlanResult, ceiling: np.ndarray, pos: np.ndarray) -> list[dict[str, Any]]:
+    prep, ev, model, timing = res.prep, res.evaluation, res.model, res.timing
+    path = prep.path
+    ds = step_lengths(path.s)
+    rows = []
+    lim = res.limits
+    grid = np.geomspace(lim.feed_min, lim.feed_max, CHARACTERISTIC_FEEDS)
+    for i, sec in enumerate(res.sections):
+        a, b = sec.start, sec.stop
+        length = float(ds[a:b].sum())
+        t_sec = float(timing.time[b - 1] - (timing.time[a - 1] if a > 0 else 0.0))
+        row: dict[str, Any] = {
+            "index": i, "kind": KINDS[sec.kind], "sample_start": a, "sample_stop": b,
+            "s_start_m": float(path.s[a - 1] if a > 0 else path.s[0]),
+            "s_end_m": float(path.s[b - 1]), "length_m": length, "feed_mm_s": sec.feed * 1e3,
+            "binding": sec.binding, "process_binding": sec.binding, "note": sec.note,
+            "line_start": int(path.line[a]), "line_end": int(path.line[b - 1]),
+            "file": path.files[int(path.file[a])], "time_s": t_sec,
+            "process_time_s": length / sec.feed,
+            "robot_limited": bool(length > 0 and t_sec > 0 and length / t_sec < ROBOT_SECTION * sec.feed),
+            "tooth_frequency_hz": model.tooth_frequency,
+            "margin_N_per_m": None, "force_max_N": None, "deflection_max_mm": None,
+            "deflection_normal_max_mm": None, "power_max_kW": None, "gamma_deg": None,
+            "gamma_range_deg": None, "natural_frequency_hz": None, "characteristic": None,
+        }
+        if row["robot_limited"]:
+            row["binding"] = "robot"
+        if sec.kind == CUT:
+            k = pos[a:b]
+            k = k[k >= 0]
+            tight = int(k[np.argmin(ceiling[model.index[k]])])
+            row.update({
+                "margin_N_per_m": float(ev.margin[k].min()),
+                "force_max_N": float(ev.force[k].max()),
+                "deflection_max_mm": float(ev.deflection_norm[k].max() * 1e3),
+                "deflection_normal_max_mm": float(np.abs(ev.deflection_normal[k]).max() * 1e3),
+                "power_max_kW": float(ev.power[k].max() * 1e-3),
+                "gamma_deg": float(np.degrees(ev.gamma[tight])),
+                "gamma_range_deg": [float(np.degrees(ev.gamma[k].min())),
+                                    float(np.degrees(ev.gamma[k].max()))],
+                "natural_frequency_hz": (None if not np.all(np.isfinite(ev.natural_frequencies[tight]))
+                                         else ev.natural_frequencies[tight].tolist()),
+                "ceiling_min_mm_s": float(ceiling[model.index[tight]] * 1e3),
+                "tightest_sample": int(model.index[tight]),
+            })
+            ch = model.evaluate(grid, np.full(grid.size, tight))
+            row["characteristic"] = {
+                "sample": int(model.index[tight]), "feeds_mm_s": (grid * 1e3).tolist(),
+                "margin_N_per_m": ch.margin.tolist(), "gamma_deg": np.degrees(ch.gamma).tolist(),
+                "force_N": ch.force.tolist(), "deflection_mm": (ch.deflection_norm * 1e3).tolist(),
+                "stable": ch.stable.tolist(), "ok": ch.all_ok.tolist(),
+            }
+        rows.append(row)
+    return rows
+
+
+def _abc_deg(rot: np.ndarray) -> np.ndarray:
+    """KUKA A, B, C [deg] of rotation matrices (m, 3, 3), R = Rz(A) Ry(B) Rx(C)."""
+    a = np.arctan2(rot[:, 1, 0], rot[:, 0, 0])
+    b = np.arctan2(-rot[:, 2, 0], np.hypot(rot[:, 0, 0], rot[:, 1, 0]))
+    c = np.arctan2(rot[:, 2, 1], rot[:, 2, 2])
+    return np.degrees(np.column_stack([a, b, c]))
+
+
+def _samples(res: PlanResult) -> dict[str, np.ndarray]:
+    prep, ev, model = res.prep, res.evaluation, res.model
+    path, job = prep.path, prep.job
+    n = len(path)
+    tool = job.tool_frame()
+    f = prep.robot.pose_function.map(n)
+    _, rot = f(prep.kinematics.q.T, tool[:3, 3])
+    rot = np.asarray(rot, float).reshape(3, n, 3).transpose(1, 0, 2) @ tool[:3, :3]
+    base = path.base
+    rot_wp = base[:3, :3].T @ rot
+    def spread(v: np.ndarray, shape: tuple = ()) -> np.ndarray:
+        out = np.full((n, *shape), np.nan)
+        out[model.index] = v
+        return out
+
+    e = prep.engagement
+    sec = section_of_samples(res.sections, n)
+    arc = np.array([m.is_arc for m in path.moves])[path.move]
+    defl = spread(ev.deflection, (3,)) @ base[:3, :3]  # base → workpiece axes
+    return {
+        "s_m": path.s, "q_rad": prep.kinematics.q, "position_wp_m": path.position_wp,
+        "abc_wp_deg": _abc_deg(rot_wp), "tool_axis_wp": path.tool_axis_wp, "section": sec,
+        "kind": res.kinds, "arc": arc, "move": path.move, "line": path.line, "source_file": path.file,
+        "feed_mm_s": res.feed * 1e3, "speed_mm_s": res.timing.speed * 1e3,
+        "time_s": res.timing.time, "force_N": spread(ev.force),
+        "deflection_mm": spread(ev.deflection_norm) * 1e3, "deflection_wp_m": defl,
+        "deflection_normal_mm": spread(ev.deflection_normal) * 1e3,
+        "gamma_deg": np.degrees(spread(ev.gamma)), "margin_N_per_m": spread(ev.margin),
+        "power_kW": spread(ev.power) * 1e-3, "a_e_m": e.a_e, "a_p_m": e.a_p,
+        "mode": e.mode.astype(int), "ceiling_mm_s": _spread_ceiling(res) * 1e3,
+        "robot_limited": res.timing.robot_limited,
+        "bound_mm_s": res.timing.bound * 1e3,
+        "joint_speed_rad_s": res.timing.joint_speed,
+    }
+
+
+def _spread_ceiling(res: PlanResult) -> np.ndarray:
+    out = np.full(len(res.prep.path), np.nan)
+    out[res.model.index] = res.ceilings.feed
+    return out
+
+
+def plan_document(res: PlanResult) -> dict[str, Any]:
+    """The plan.json document (without format/version/samples_file)."""
+    job = res.prep.job
+    tool = res.prep.tool
+    return {
+        "method": res.method, "job_name": job.job.name,
+        "job_folder": str(job.folder),
+        "robot": job.cell.robot, "files": list(res.prep.path.files),
+        "base_frame": {"xyz_mm": list(job.cell.base_mm), "abc_deg": list(job.cell.base_abc_deg)},
+        "tool_frame": {"xyz_mm": list(job.cell.tcp_mm), "abc_deg": list(job.cell.tcp_abc_deg)},
+        "spindle_rpm": job.spindle.rpm, "flutes": tool.flutes,
+        "tool_diameter_mm": tool.radius * 2e3, "material": job.material,
+        "model": {"process_model": job.model.process_model, "mass_model": job.model.mass_model,
+                  "criterion": job.model.chatter_criterion, "cct": job.model.cct},
+        "constraints": res.limits.as_json(res.safety_factor),
+        "sections": res.section_rows,
+        "cycle_time_s": res.cycle_time, "process_time_s": res.process_time,
+        "solver": res.solver.as_json(),
+        "wall_times_s": res.wall_times,
+        "summary": summary(res),
+    }
+
+
+def summary(res: PlanResult) -> dict[str, Any]:
+    """Headline numbers of a plan (units in names)."""
+    ev = res.evaluation
+    cut = [r for r in res.section_rows if r["kind"] == "cut"]
+    counts: dict[str, int] = {}
+    for r in res.section_rows:
+        counts[r["binding"]] = counts.get(r["binding"], 0) + 1
+    return {
+        "samples": len(res.prep.path), "cut_samples": len(res.model),
+        "sections": len(res.section_rows), "cut_sections": len(cut),
+        "binding_counts": counts,
+        "robot_limited_sections": sum(1 for r in res.section_rows if r["robot_limited"]),
+        "force_max_N": float(ev.force.max()) if ev.force.size else None,
+        "deflection_max_mm": float(ev.deflection_norm.max() * 1e3) if ev.force.size else None,
+        "deflection_normal_max_mm": (float(np.abs(ev.deflection_normal).max() * 1e3)
+                                     if ev.force.size else None),
+        "margin_min_N_per_m": float(ev.margin.min()) if ev.force.size else None,
+        "feed_range_mm_s": [float(res.feed[res.kinds == CUT].min() * 1e3),
+                            float(res.feed[res.kinds == CUT].max() * 1e3)] if ev.force.size else None,
+        "constraints": list(CONSTRAINTS),
+    }
+
+
+def write_plan_outputs(res: PlanResult, folder, report: bool = True) -> dict[str, Any]:
+    """Write plan.json and samples.npz (and, with ``report``, report.html + PNGs) into ``folder``.
+
+    Returns the written paths by name.
+    """
+    written: dict[str, Any] = {"plan": write_plan(folder, plan_document(res), _samples(res))}
+    written["samples"] = written["plan"].parent / "samples.npz"
+    if report:
+        from planner.report import write_report
+
+        written.update(write_report(res, folder))
+    return written
