@@ -1,0 +1,544 @@
+"""Time-domain milling on the flexible arm: the 2-DOF equilibrium-chip-thickness model (SPEC §6).
+
+The structure is the arm at the pose, reduced to the plane normal to the tool axis, with coordinates
+x = (x_Xo, x_Zo) [m] along the cutting frame's X_o (radial) and Z_o (feed) axes (SPEC §4):
+
+    M ẍ + C ẋ + K x = F(t)
+
+M is the Cartesian translational mass at the TCP (CRBA of the URDF plus the spindle point mass,
+Λ = (J_v M_q⁻¹ J_vᵀ)⁻¹) and K the CCT translational stiffness K_t under the mean cutting force
+(:func:`models.analysis.point_function`'s ``stiffness``), both projected on (X_o, Z_o) and
+symmetrised; C is modal (stiffness-and-mass proportional per mode) with one damping ratio ζ.
+
+The cutter is a helical flat end mill cut into thin axial slices; slice j of flute k sits at the
+immersion angle φ = Ω t + 2πk/N − j·Δz·tan(helix)/R (the helix makes the upper slices lag). Each
+engaged edge slice carries the force of :func:`models.cutting.edge_forces` (the same magnitudes as
+the point model), projected with F = −F_t t(φ) − F_r n(φ) + F_a Y_o.
+
+**Chip thickness.** h = c sin φ + n(φ)·x(t) − n(φ)·x_prev, clipped at 0 (the edge leaves the cut,
+and then carries no force at all, edge force included). x_prev is the position at which the previous
+edge at the same angle and height actually removed material: with regeneration on, the surface is
+kept per slice and angle and updated only where an edge cut (an edge that left the cut leaves the
+older surface, one more feed per tooth deeper: multiple regeneration); with regeneration off the
+surface is smooth and stays where it was at the start — SPEC's x_prev = 0 measured from the
+static equilibrium (``initial="static"``, the default) or from the nominal path (``"rest"``) — and
+the model is the time-periodic one whose average is the ``oriented`` process stiffness of SPEC §5.
+(Why not the nominal path with ``"static"``: on the KR 210 the static deflection under the mean
+force, K_tc a_p c/K, is several feeds per tooth; against a surface at the nominal path the tool
+would simply leave the cut. The previous pass was cut at the deflected position too.)
+
+**Integrator.** The linear structure is discretised exactly for a force that varies linearly over a
+step (first-order hold, matrix exponential). Each step: the force with the rigid chip (tool at its
+nominal position on the current surface), the structure's response at the end of the step, the chip
+with that position, the force again, … until the force changes by less than
+:data:`FORCE_TOLERANCE` (the thesis's equilibrium chip thickness); then advance. The step is a whole
+fraction of the tooth period so that the surface memory is a plain ring buffer.
+
+``iterate=False`` is the thesis's *first iteration*: the structure is driven by the rigid-chip force
+(no chip feedback) and the force reported is the one after one chip update with that response.
+
+Everything is SI; angles in rad, frequencies in Hz only where the name says ``_hz``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cache
+
+import casadi as ca
+import numpy as np
+import scipy.linalg
+
+from models import cutting
+from models.analysis import Cut, ModelParameters, point_function
+from models.errors import InputError
+from models.robot import Robot
+
+__all__ = [
+    "DEFAULT_DAMPING_RATIO",
+    "DEFAULT_SLICES",
+    "FORCE_TOLERANCE",
+    "MIN_STEPS_PER_TOOTH",
+    "CutterGeometry",
+    "SimulationResult",
+    "Structure",
+    "cutter_geometry",
+    "discretise",
+    "modal_damping",
+    "pose_structure",
+    "process_stiffness_series",
+    "simulate",
+    "tcp_mass",
+]
+
+#: Damping ratio of both arm modes when judging stability [-] (SPEC §6: an undamped run sits on
+#: the margin; 2 % is a typical structural value for a robot arm).
+DEFAULT_DAMPING_RATIO = 0.02
+#: Per-step equilibrium: stop when the force changes by less than this fraction [-] (SPEC §6: 1 %).
+FORCE_TOLERANCE = 0.01
+#: Absolute floor of the force scale in the convergence test [N]: below it (edge out of the cut)
+#: a change of a micro-newton counts as converged.
+FORCE_FLOOR = 1e-6
+#: Per-step iteration cap; the fixed point contracts by ~(K_p dt²/m) ≪ 1 per iteration, so hitting
+#: it means the step is far too long.
+MAX_ITERATIONS = 50
+#: Fewest integrator steps per tooth period [-] (angular resolution 360°/N/64 at most).
+MIN_STEPS_PER_TOOTH = 64
+#: Axial slices of the helical cutter [-].
+DEFAULT_SLICES = 16
+#: Vibration amplitude [m], as a fraction of the feed per tooth, above which the edge leaves the
+#: cut part of the time: growth rates are fitted only below it (the linear regime).
+SATURATION_FRACTION = 0.25
+
+
+# --------------------------------------------------------------------------------------------------
+# The structure at a pose
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Structure:
+    """The arm's 2-DOF structure in the plane (X_o, Z_o) at one pose. SI.
+
+    Attributes:
+        mass: M [kg], shape (2, 2), symmetric positive definite.
+        stiffness: K [N/m], shape (2, 2), symmetric positive definite.
+        damping: C [N·s/m], shape (2, 2).
+        plane: the plane's axes X_o, Z_o in base axes, shape (3, 2).
+        damping_ratio: ζ used to build ``damping`` [-] (NaN when C was given directly).
+    """
+
+    mass: np.ndarray
+    stiffness: np.ndarray
+    damping: np.ndarray
+    plane: np.ndarray
+    damping_ratio: float = float("nan")
+
+    def __post_init__(self) -> None:
+        for name in ("mass", "stiffness", "damping"):
+            value = np.asarray(getattr(self, name), float)
+            if value.shape != (2, 2) or not np.all(np.isfinite(value)):
+                raise InputError(name, f"need a finite 2x2 matrix, got shape {value.shape}")
+            object.__setattr__(self, name, value)
+        for name in ("mass", "stiffness"):
+            if np.linalg.eigvalsh(0.5 * (getattr(self, name) + getattr(self, name).T))[0] <= 0:
+                raise InputError(name, "must be positive definite")
+
+    @property
+    def natural_frequencies_hz(self) -> np.ndarray:
+        """Undamped natural frequencies [Hz], ascending, shape (2,)."""
+        omega2 = scipy.linalg.eigh(self.stiffness, self.mass, eigvals_only=True)
+        return np.sqrt(np.maximum(omega2, 0.0)) / (2.0 * np.pi)
+
+    def state_matrix(self, process_stiffness: np.ndarray | None = None) -> np.ndarray:
+        """ż = A z for z = (x, ẋ), with an optional process stiffness K_p [N/m] (F = K_p x), (4, 4)."""
+        k = self.stiffness if process_stiffness is None else self.stiffness - process_stiffness
+        m_inv = np.linalg.inv(self.mass)
+        return np.block([[np.zeros((2, 2)), np.eye(2)], [-m_inv @ k, -m_inv @ self.damping]])
+
+
+def modal_damping(mass: np.ndarray, stiffness: np.ndarray, ratio: float) -> np.ndarray:
+    """C [N·s/m] with damping ratio ``ratio`` in both modes: C = M V diag(2ζω) Vᵀ M, VᵀMV = I."""
+    if not (math.isfinite(ratio) and 0.0 <= ratio < 1.0):
+        raise InputError("damping ratio", f"must lie in [0, 1), got {ratio!r}")
+    omega2, v = scipy.linalg.eigh(stiffness, mass)
+    omega = np.sqrt(np.maximum(omega2, 0.0))
+    return mass @ v @ np.diag(2.0 * ratio * omega) @ v.T @ mass
+
+
+@cache
+def _tcp_mass_function(robot: Robot) -> ca.Function:
+    sym = robot.symbolic
+    m_sp = ca.SX.sym("spindle_mass")
+    com = ca.SX.sym("spindle_com", 3)
+    mass = robot.mass_matrix_expr(m_sp, com)
+    jv = sym.jacobian[0:3, :]
+    lam = ca.inv(jv @ ca.solve(mass, jv.T))
+    return ca.Function("tcp_mass", [sym.q, sym.tcp, m_sp, com], [0.5 * (lam + lam.T)],
+                       ["q", "tcp", "spindle_mass", "spindle_com"], ["mass"])
+
+
+def tcp_mass(robot: Robot, q: np.ndarray, params: ModelParameters) -> np.ndarray:
+    """Cartesian translational mass at the TCP [kg], shape (3, 3), base axes (SPEC §5 `robot`)."""
+    f = _tcp_mass_function(robot)
+    return np.asarray(f(np.asarray(q, float), np.asarray(params.tcp, float), params.spindle_mass,
+                        np.asarray(params.spindle_com, float)), float)
+
+
+def pose_structure(robot: Robot, params: ModelParameters, q: np.ndarray, cut: Cut, feed: float,
+                   damping_ratio: float = DEFAULT_DAMPING_RATIO) -> Structure:
+    """The 2-DOF structure at joints ``q`` [rad] for ``cut`` at ``feed`` [m/s].
+
+    K is the (CCT, if ``params.cct``) translational stiffness under the mean cutting force at this
+    feed, M the robot's Cartesian mass; both projected on (X_o, Z_o) and symmetrised.
+    """
+    f = point_function(robot, "oriented", "isotropic", outputs=("stiffness",))
+    k_t = np.asarray(f(np.asarray(q, float), cut.vector(), feed, params.vector()), float)
+    if not np.all(np.isfinite(k_t)):
+        raise InputError("pose", "the stiffness is not finite here (singular pose)")
+    plane = np.column_stack([cut.radial_dir, cut.feed_dir])
+    k2 = plane.T @ k_t @ plane
+    m2 = plane.T @ tcp_mass(robot, q, params) @ plane
+    k2, m2 = 0.5 * (k2 + k2.T), 0.5 * (m2 + m2.T)
+    return Structure(m2, k2, modal_damping(m2, k2, damping_ratio), plane, damping_ratio)
+
+
+# --------------------------------------------------------------------------------------------------
+# Cutter geometry over one tooth period
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class CutterGeometry:
+    """Edge-slice angles at the ``steps`` instants of one tooth period. Arrays (steps, N·S).
+
+    Row p holds every (flute, slice) at time p·dt; with identical flutes the set of angles repeats
+    every tooth period, so row p also indexes the surface memory (the previous edge at the same
+    angle and height passed exactly one tooth period, ``steps`` rows, earlier).
+
+    Attributes:
+        cos, sin: cos φ, sin φ of each edge slice.
+        engaged: φ (mod 2π) inside the engaged arc [φ_st, φ_ex].
+        width: axial width b of each slice [m].
+        tooth_period: T = 2π/(NΩ) [s].
+        steps: steps per tooth period.
+    """
+
+    cos: np.ndarray
+    sin: np.ndarray
+    engaged: np.ndarray
+    width: np.ndarray
+    tooth_period: float
+    steps: int
+
+    @property
+    def dt(self) -> float:
+        """Step [s]."""
+        return self.tooth_period / self.steps
+
+
+def cutter_geometry(cut: Cut, helix_angle: float, steps: int, slices: int = DEFAULT_SLICES,
+                    offset: float = 0.0) -> CutterGeometry:
+    """Angles of every edge slice over one tooth period (``steps`` instants), SPEC §4 conventions.
+
+    Args:
+        cut: the cut (a_e, a_p, mode, spindle speed, flutes, radius).
+        helix_angle: [rad]; slice j (height (j + ½)·a_p/S) lags by height·tan(helix)/R.
+        steps: instants per tooth period.
+        slices: axial slices S.
+        offset: instants at (p + offset)·dt (0.5: the midpoints the Floquet integrator uses).
+    """
+    if steps < 4 or slices < 1:
+        raise InputError("discretisation", f"need >= 4 steps per tooth and >= 1 slice, got "
+                         f"{steps}, {slices}")
+    n_fl = int(cut.flutes)
+    phi_st, phi_ex = (float(a) for a in cutting.immersion_angles(cut.a_e, cut.radius, cut.mode))
+    period = 2.0 * np.pi / (n_fl * cut.spindle_speed)
+    height = (np.arange(slices) + 0.5) * cut.a_p / slices
+    lag = height * math.tan(helix_angle) / cut.radius
+    t = (np.arange(steps) + offset) * (2.0 * np.pi / n_fl / steps)
+    flute = np.arange(n_fl) * (2.0 * np.pi / n_fl)
+    phi = t[:, None, None] + flute[None, :, None] - lag[None, None, :]
+    phi = np.mod(phi, 2.0 * np.pi).reshape(steps, n_fl * slices)
+    engaged = (phi >= phi_st) & (phi <= phi_ex)
+    width = np.full(phi.shape, cut.a_p / slices)
+    return CutterGeometry(np.cos(phi), np.sin(phi), engaged, width, period, steps)
+
+
+# --------------------------------------------------------------------------------------------------
+# Exact discretisation
+# --------------------------------------------------------------------------------------------------
+
+
+def discretise(structure: Structure, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """First-order-hold discretisation: z⁺ = Φ z + Γ₀ F₀ + Γ₁ F₁ for F linear over the step.
+
+    z = (x, ẋ) [m, m/s], F = (F_Xo, F_Zo) [N] at the step's start (F₀) and end (F₁).
+    Returns (Φ (4, 4), Γ₀ (4, 2), Γ₁ (4, 2)).
+    """
+    a = structure.state_matrix()
+    b = np.vstack([np.zeros((2, 2)), np.linalg.inv(structure.mass)])
+    aug = np.zeros((8, 8))
+    aug[0:4, 0:4] = a * dt
+    aug[0:4, 4:6] = b * dt
+    aug[4:6, 6:8] = np.eye(2)
+    e = scipy.linalg.expm(aug)
+    phi, g_sum, g_ramp = e[0:4, 0:4], e[0:4, 4:6], e[0:4, 6:8]
+    # ∫ e^{Aσ} B (u0 + (u1 − u0)(h − σ)/h) dσ: g_sum multiplies u0, g_ramp multiplies (u1 − u0).
+    return phi, g_sum - g_ramp, g_ramp
+
+
+# --------------------------------------------------------------------------------------------------
+# Simulation
+# --------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    """Output of :func:`simulate`, sampled at ``fs``. SI.
+
+    Attributes:
+        time: [s], shape (k,).
+        force: force on the tool in (X_o, Y_o, Z_o) [N], shape (k, 3).
+        displacement: tool displacement (x_Xo, x_Zo) [m], shape (k, 2).
+        fs: output sample rate [Hz].
+        tooth_period: [s].
+        feed_per_tooth: c [m].
+        f_peak: largest resultant force in the analysis window [N].
+        f_pv: largest minus smallest per-tooth-period peak of the resultant in the window [N].
+        tooth_peaks: per-tooth-period peaks of the resultant in the window [N].
+        iterations_mean: mean chip/force iterations per step (1 with ``iterate=False``).
+        unconverged_steps: steps that hit :data:`MAX_ITERATIONS`.
+        dominant_frequency_hz: largest peak of the resultant force's spectrum (DC excluded) [Hz].
+        vibration_frequency_hz: largest peak of the spectrum of x(t) − x(t − T), the part of the
+            motion that is not periodic with the tooth period (chatter, transients) [Hz].
+        growth_rate: exponential rate [1/s] fitted to the per-period RMS of x(t) − x(t − T) while it
+            is below :data:`SATURATION_FRACTION` of the chip (> 0: the vibration grows).
+        spectrum_hz, spectrum: one-sided amplitude spectrum of the resultant in the window [N].
+        window_start: start of the analysis window [s].
+        iterate, regeneration: the switches used.
+    """
+
+    time: np.ndarray
+    force: np.ndarray
+    displacement: np.ndarray
+    fs: float
+    tooth_period: float
+    feed_per_tooth: float
+    f_peak: float
+    f_pv: float
+    tooth_peaks: np.ndarray
+    iterations_mean: float
+    unconverged_steps: int
+    dominant_frequency_hz: float
+    vibration_frequency_hz: float
+    growth_rate: float
+    spectrum_hz: np.ndarray
+    spectrum: np.ndarray
+    window_start: float
+    iterate: bool
+    regeneration: bool
+
+    @property
+    def resultant(self) -> np.ndarray:
+        """|F| [N], shape (k,)."""
+        return np.linalg.norm(self.force, axis=1)
+
+    @property
+    def dynamic_ratio(self) -> float:
+        """F_PV / F_peak [-] (SPEC §6: the static force model holds below 0.1)."""
+        return self.f_pv / self.f_peak if self.f_peak > 0 else 0.0
+
+
+def _coefficient_list(coefficients) -> list[float]:
+    if isinstance(coefficients, cutting.Material):
+        return [float(v) for v in coefficients.coefficients()]
+    values = np.asarray(coefficients, float).reshape(-1)
+    if values.shape != (6,) or not np.all(np.isfinite(values)):
+        raise InputError("coefficients", "need 6 finite cutting coefficients")
+    return [float(v) for v in values]
+
+
+def _steps_per_tooth(cut: Cut, fs: float) -> int:
+    period = 2.0 * np.pi / (int(cut.flutes) * cut.spindle_speed)
+    return max(MIN_STEPS_PER_TOOTH, int(math.ceil(period * fs)))
+
+
+def _edge_force(geo_row: tuple, h: np.ndarray, k: list[float]) -> tuple[np.ndarray, np.ndarray]:
+    """Force (F_Xo, F_Yo, F_Zo) [N] of the cutting edge slices and the cutting mask."""
+    cos, sin, engaged, width = geo_row
+    cuts = engaged & (h > 0.0)
+    f_t, f_r, f_a = cutting.edge_forces(None, np.where(cuts, h, 0.0), np.where(cuts, width, 0.0), k)
+    return np.array([np.dot(f_t, sin) - np.dot(f_r, cos), f_a.sum(),
+                     -np.dot(f_t, cos) - np.dot(f_r, sin)]), cuts
+
+
+def simulate(structure: Structure, cut: Cut, feed: float, coefficients, helix_angle: float,
+             duration: float = 2.0, fs: float = 5000.0, iterate: bool = True,
+             regeneration: bool = True, slices: int = DEFAULT_SLICES, initial: str = "static",
+             steps_per_tooth: int | None = None, window: float = 0.5) -> SimulationResult:
+    """Simulate the cut on the 2-DOF structure (SPEC §6).
+
+    Args:
+        structure: M, C, K in (X_o, Z_o).
+        cut: the cut (its ``radial_dir``/``feed_dir`` must be the structure's plane).
+        feed: feed speed v_f [m/s].
+        coefficients: [K_tc, K_rc, K_ac (N/m²), K_te, K_re, K_ae (N/m)] or a Material.
+        helix_angle: [rad].
+        duration: simulated time [s].
+        fs: output sample rate [Hz]; the integrator runs at least this fast.
+        iterate: equilibrium chip per step (True) or the first iteration only (False).
+        regeneration: the previous edge's surface (True) or the nominal surface (False).
+        slices: axial slices.
+        initial: ``"static"`` (start at the static equilibrium under the mean rigid-chip force,
+            with the surface cut there) or ``"rest"`` (x = 0, the nominal surface).
+        steps_per_tooth: integrator steps per tooth period (default from ``fs``).
+        window: fraction of the run, at its end, over which F_peak, F_PV and the spectrum are taken.
+    """
+    if not (math.isfinite(feed) and feed > 0):
+        raise InputError("feed", f"must be positive and finite, got {feed!r}")
+    if not (math.isfinite(duration) and duration > 0 and math.isfinite(fs) and fs > 0):
+        raise InputError("duration/fs", "duration and sample rate must be positive")
+    if initial not in ("static", "rest"):
+        raise InputError("initial", f"{initial!r} is not 'static' or 'rest'")
+    if not 0.0 < window <= 1.0:
+        raise InputError("window", f"must lie in (0, 1], got {window!r}")
+    k = _coefficient_list(coefficients)
+    n_fl = int(cut.flutes)
+    c = cutting.feed_per_tooth(feed, n_fl, cut.spindle_speed * 60.0 / (2.0 * np.pi))
+    m = steps_per_tooth or _steps_per_tooth(cut, fs)
+    geo = cutter_geometry(cut, helix_angle, m, slices)
+    dt = geo.dt
+    n_steps = int(math.ceil(duration / dt))
+    if n_steps < 2 * m:
+        raise InputError("duration", f"simulate at least two tooth periods ({2 * geo.tooth_period:g} s)")
+    phi_d, g0, g1 = discretise(structure, dt)
+    g1x = g1[0:2]
+    rows = [(geo.cos[p], geo.sin[p], geo.engaged[p], geo.width[p]) for p in range(m)]
+    chip0 = c * geo.sin  # rigid chip c sin φ, (m, N·S)
+
+    # Surface memory: extra material beyond the nominal chip, per (row, edge slice): h = w + c sin φ
+    # + n·x. After a cut w = −n·x (the surface is where the edge was); where the edge left the cut,
+    # w grows by one more c sin φ (the older surface stays).
+    w = np.zeros_like(chip0)
+    z = np.zeros(4)
+    if initial == "static":
+        mean = np.zeros(3)
+        for p in range(m):
+            mean += _edge_force(rows[p], chip0[p], k)[0]
+        mean /= m
+        # The surface was cut at the static position: the chip there is the rigid one, so the
+        # equilibrium is K x = F̄(rigid chip).
+        z[0:2] = np.linalg.solve(structure.stiffness, mean[[0, 2]])
+        w = -(geo.cos * z[0] + geo.sin * z[1])
+    force = np.zeros((n_steps + 1, 3))
+    disp = np.zeros((n_steps + 1, 2))
+    disp[0] = z[0:2]
+    f_prev = _edge_force(rows[0], w[0] + chip0[0] + geo.cos[0] * z[0] + geo.sin[0] * z[1], k)[0]
+    force[0] = f_prev
+    drive_prev = f_prev[[0, 2]]
+    iterations = 0
+    unconverged = 0
+    for n in range(1, n_steps + 1):
+        p = n % m
+        row = rows[p]
+        cos, sin = row[0], row[1]
+        h_rigid = w[p] + chip0[p]
+        base = phi_d @ z + g0 @ drive_prev
+        f, cuts = _edge_force(row, h_rigid, k)
+        if iterate:
+            for it in range(1, MAX_ITERATIONS + 1):
+                x = base[0:2] + g1x @ f[[0, 2]]
+                f_new, cuts = _edge_force(row, h_rigid + cos * x[0] + sin * x[1], k)
+                change = np.linalg.norm(f_new - f)
+                f = f_new
+                if change <= FORCE_TOLERANCE * max(np.linalg.norm(f), FORCE_FLOOR):
+                    break
+            else:
+                unconverged += 1
+            iterations += it
+            drive = f[[0, 2]]
+            z = base + g1 @ drive
+            x = z[0:2]
+            reported = f
+        else:
+            drive = f[[0, 2]]  # the structure answers the rigid-chip force
+            z = base + g1 @ drive
+            x = z[0:2]
+            reported, cuts = _edge_force(row, h_rigid + cos * x[0] + sin * x[1], k)
+            iterations += 1
+        if regeneration:
+            w[p] = np.where(cuts, -(cos * x[0] + sin * x[1]), np.where(row[2], h_rigid, 0.0))
+        force[n] = reported
+        disp[n] = x
+        drive_prev = drive
+    t_int = np.arange(n_steps + 1) * dt
+    return _summarise(t_int, force, disp, geo.tooth_period, m, c, fs, duration,
+                      iterations / n_steps, unconverged, iterate, regeneration, window)
+
+
+def process_stiffness_series(geo: CutterGeometry, coefficients) -> np.ndarray:
+    """Instantaneous ∂F/∂x [N/m] at each instant of ``geo`` on the geometric arc, (steps, 2, 2).
+
+    Rows are force components, columns displacement components, in (X_o, Z_o): the sum over the
+    engaged edge slices of −b (K_tc t + K_rc n) nᵀ, the x-derivative of the edge force of
+    :func:`models.cutting.instantaneous_force` with h = c sin φ + n·x (linear in h, so it holds no
+    feed). Its mean over the period is the ``oriented`` K_p of SPEC §5 (a test).
+    """
+    k = _coefficient_list(coefficients)
+    k_tc, k_rc = k[0], k[1]
+    b = np.where(geo.engaged, geo.width, 0.0)
+    t = np.stack([-geo.sin, geo.cos])  # t(φ) in (X_o, Z_o)
+    nn = np.stack([geo.cos, geo.sin])
+    return -np.einsum("ips,jps,ps->pij", k_tc * t + k_rc * nn, nn, b)
+
+
+def _mean_process_stiffness(geo: CutterGeometry, k: list[float]) -> np.ndarray:
+    """Tooth-period mean of :func:`process_stiffness_series` [N/m], (2, 2)."""
+    return process_stiffness_series(geo, k).mean(axis=0)
+
+
+def _summarise(t_int, force, disp, period, m, c, fs, duration, iterations_mean, unconverged,
+               iterate, regeneration, window) -> SimulationResult:
+    t_out = np.arange(int(math.floor(duration * fs)) + 1) / fs
+    t_out = t_out[t_out <= t_int[-1]]
+    f_out = np.column_stack([np.interp(t_out, t_int, force[:, i]) for i in range(3)])
+    x_out = np.column_stack([np.interp(t_out, t_int, disp[:, i]) for i in range(2)])
+    res = np.linalg.norm(force, axis=1)
+    # Per-tooth-period peaks on the integrator grid (exact per period), over the window.
+    n_periods = (len(res) - 1) // m
+    first = max(0, int(math.floor((1.0 - window) * n_periods)))
+    peaks = res[1:1 + n_periods * m].reshape(n_periods, m).max(axis=1)[first:]
+    f_peak = float(peaks.max()) if peaks.size else float(res.max())
+    f_pv = float(peaks.max() - peaks.min()) if peaks.size else 0.0
+    w0 = first * m
+    seg = res[w0:]
+    spec_hz, spec = _spectrum(seg - seg.mean(), m / period)
+    dominant = float(spec_hz[1 + np.argmax(spec[1:])]) if spec.size > 1 else 0.0
+    diff = disp[m:] - disp[:-m]
+    growth, (lo, hi) = _growth_rate(diff, m, period, c)
+    seg_d = diff[lo * m:hi * m] if hi - lo >= 4 else diff
+    vib_hz, vib = _spectrum(seg_d[:, 0] - seg_d[:, 0].mean(), m / period)
+    amp = vib + _spectrum(seg_d[:, 1] - seg_d[:, 1].mean(), m / period)[1]
+    vibration = float(vib_hz[1 + np.argmax(amp[1:])]) if amp.size > 1 else 0.0
+    return SimulationResult(
+        time=t_out, force=f_out, displacement=x_out, fs=float(fs), tooth_period=period,
+        feed_per_tooth=float(c), f_peak=f_peak, f_pv=f_pv, tooth_peaks=peaks,
+        iterations_mean=float(iterations_mean), unconverged_steps=int(unconverged),
+        dominant_frequency_hz=dominant, vibration_frequency_hz=vibration, growth_rate=growth,
+        spectrum_hz=spec_hz, spectrum=spec, window_start=float(first * period),
+        iterate=iterate, regeneration=regeneration)
+
+
+def _spectrum(signal: np.ndarray, rate: float) -> tuple[np.ndarray, np.ndarray]:
+    """One-sided amplitude spectrum with a Hann window: (frequencies [Hz], amplitudes)."""
+    n = len(signal)
+    if n < 4:
+        return np.zeros(1), np.zeros(1)
+    win = np.hanning(n)
+    amp = np.abs(np.fft.rfft(signal * win)) * 2.0 / win.sum()
+    return np.fft.rfftfreq(n, 1.0 / rate), amp
+
+
+def _growth_rate(diff: np.ndarray, m: int, period: float,
+                 c: float) -> tuple[float, tuple[int, int]]:
+    """Rate [1/s] of the per-period RMS of x(t) − x(t − T), fitted in the linear regime, and the
+    range of periods (of ``diff``) it was fitted over."""
+    n_periods = len(diff) // m
+    if n_periods < 4:
+        return 0.0, (0, n_periods)
+    rms = np.sqrt((diff[:n_periods * m] ** 2).sum(axis=1).reshape(n_periods, m).mean(axis=1))
+    rms = rms[1:]  # the first period still holds the start
+    limit = SATURATION_FRACTION * c
+    over = np.flatnonzero(rms > limit)
+    stop = int(over[0]) if over.size else len(rms)
+    stop = max(stop, min(4, len(rms)))
+    # The later half of the linear regime: by then the least damped (or fastest growing) motion
+    # dominates, which is what the Floquet multiplier describes.
+    start = stop // 2 if stop >= 8 else 0
+    y = np.log(np.maximum(rms[start:stop], 1e-300))
+    t = (np.arange(start, stop) + 1.5) * period
+    if stop - start < 2:
+        return 0.0, (start + 1, stop + 1)
+    return float(np.polyfit(t, y, 1)[0]), (start + 1, stop + 1)
