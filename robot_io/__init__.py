@@ -1,9 +1,19 @@
 """cctmill I/O across the boundary: toolpath readers (G-code, APT/CL, KUKA KRL) into one plain move
-model; later the KRL writer, KUKA protocols and signal sources. Own plain data types; never imports
-``planner``."""
+model; the KRL writer and its lint; KUKA protocols and signal sources. Own plain data types; never
+imports ``planner``."""
 
 from robot_io.apt import read_apt, read_apt_text
 from robot_io.gcode import read_gcode, read_gcode_text
+from robot_io.krl import (
+    KrlError,
+    KrlFrame,
+    KrlMove,
+    KrlProgramSpec,
+    KrlSection,
+    render_krl,
+    write_krl,
+)
+from robot_io.krl_lint import LintProblem, lint_krl
 from robot_io.krl_reader import read_krl, read_krl_text
 from robot_io.readers import FORMATS, detect_format, read_toolpath
 from robot_io.toolpath import (
@@ -20,6 +30,12 @@ from robot_io.toolpath import (
 
 __all__ = [
     "FORMATS",
+    "KrlError",
+    "KrlFrame",
+    "KrlMove",
+    "KrlProgramSpec",
+    "KrlSection",
+    "LintProblem",
     "Move",
     "MoveKind",
     "SourceRef",
@@ -29,6 +45,7 @@ __all__ = [
     "ToolpathWarning",
     "arc_geometry",
     "detect_format",
+    "lint_krl",
     "read_apt",
     "read_apt_text",
     "read_gcode",
@@ -36,5 +53,7 @@ __all__ = [
     "read_krl",
     "read_krl_text",
     "read_toolpath",
+    "render_krl",
     "summarize",
+    "write_krl",
 ]
