@@ -254,11 +254,11 @@ class KvpSimServer:
                 continue
             if self.reply_delay_s:
                 time.sleep(self.reply_delay_s)
+            self._count(replies=1)  # before sending: a client holding the reply sees it counted
             try:
                 conn.sendall(reply)
             except OSError:
                 return False
-            self._count(replies=1)
         return True
 
     def _answer(self, frame: bytes) -> bytes | None:

@@ -408,7 +408,8 @@ class RsiServer:
             return self._last_rob
 
     def reply_times(self) -> list[float]:
-        """Receive-to-sent time of the kept replies [s], oldest first."""
+        """Time from a telegram's arrival to its reply being handed to the socket (parse, checks,
+        build) for the kept replies [s], oldest first; the full round trip is measured by the peer."""
         with self._lock:
             return list(self._times)
 
@@ -459,19 +460,20 @@ class RsiServer:
                 value = override_to_int(rob.ov_pro) if rob.ov_pro is not None else self._initial
         dat = rob.dat if self.dat is None else self.dat
         reply = build_sen(rob.ipoc_text, value, self.sentype, self.override_tag, self.correction, dat)
-        self._sock.sendto(reply, addr)
-        dt = time.perf_counter() - t_rx
         if prev is not None and not starting and rob.ipoc > prev.ipoc:
             step = rob.ipoc - prev.ipoc
             if self._auto_cycle:
                 self.cycle_ms = step if self.cycle_ms is None else min(self.cycle_ms, step)
             self.missed_cycles += max(0, step // (self.cycle_ms or step) - 1)
+        again = starting and self._ever_up
+        self._ever_up = True
+        # Everything is counted before the reply leaves, so a peer that has the reply sees the counts.
+        dt = time.perf_counter() - t_rx
         with self._lock:
             self._times.append(dt)
             self._last_rob = rob
             self._last_rx = time.monotonic()
             self._up = True
             self._peer = addr
-        again = starting and self._ever_up
-        self._ever_up = True
         self._stats.add(replies=1, sent=1, late=int(dt > self.reply_budget_s), reconnects=int(again))
+        self._sock.sendto(reply, addr)
