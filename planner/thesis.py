@@ -106,9 +106,10 @@ def thesis_sections(runs: list[tuple[int, int, int]], s: np.ndarray, ceiling: np
                 break
             nxt: list[tuple[int, int]] = []
             for x, split in zip(secs, todo, strict=True):
-                if split:
-                    pieces = _equal_pieces(s, x[0], x[1], 0.5 * _length(s, x) + 1e-12)
-                    nxt += pieces if len(pieces) > 1 else [x]
+                pieces = (_equal_pieces(s, x[0], x[1], 0.5 * _length(s, x) + 1e-12) if split
+                          else [x])
+                if len(pieces) > 1 and min(_length(s, p) for p in pieces) >= section_length_min:
+                    nxt += pieces
                 else:
                     nxt.append(x)
             if len(nxt) == len(secs):

@@ -1,0 +1,167 @@
+"""Independent check of a plan: every sample re-evaluated, nothing taken from the optimiser.
+
+The planner evaluates the model through one mapped CasADi Function and reduces the constraints to
+feed ceilings. This checker does neither: for every ``cut`` sample it calls the per-point numeric
+model (:meth:`models.point.PointModel.analyze`: one pose, its own joint-limit and singularity
+checks) at the *planned* feed of that sample, and computes the spindle power by integrating the
+instantaneous tangential edge force over the engaged arc numerically (not the closed form the
+planner uses). It then checks the plan's own bookkeeping: feeds inside the bounds, neighbouring cut
+sections within the feed-change bound, sections no shorter than the minimum (unless their whole
+run is), and the timed path speed never above the planned feed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from models.analysis import Cut
+from models.cutting import edge_forces, immersion_angles
+from models.point import PointModel
+from planner.evaluate import Limits, model_parameters
+from planner.prepare import Prepared
+from planner.sections import CUT, RAPID, kind_runs, step_lengths
+
+__all__ = ["ARC_POINTS", "CheckReport", "REL_TOL", "SPEED_TOL", "Violation", "check_plan", "check_result"]
+
+#: Relative tolerance of a limit check [-]: the planner's ceilings sit on the feasible side of a
+#: 0.07 % bisection bracket, so a real violation is far larger than floating-point noise.
+REL_TOL = 1e-9
+#: Points of the numerical power integral over the engaged arc (trapezoids; error ≪ 0.1 %).
+ARC_POINTS = 721
+#: Timed speed may exceed the planned feed by this fraction (toppra's interpolation) [-].
+SPEED_TOL = 1e-6
+
+
+@dataclass(frozen=True)
+class Violation:
+    """One broken limit.
+
+    Attributes:
+        sample: path sample (or the first sample of the section).
+        constraint: what is broken.
+        value: the value found (SI).
+        limit: the limit (SI).
+        where: ``file:line`` of the sample.
+    """
+
+    sample: int
+    constraint: str
+    value: float
+    limit: float
+    where: str
+
+
+@dataclass(frozen=True)
+class CheckReport:
+    """What the checker found.
+
+    Attributes:
+        samples_checked: cut samples re-evaluated.
+        violations: every broken limit.
+        worst_ratio: per constraint, the largest value / limit found (≤ 1 is inside).
+    """
+
+    samples_checked: int
+    violations: list[Violation] = field(default_factory=list)
+    worst_ratio: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return not self.violations
+
+
+def _power(cut: Cut, feed: float, coeffs: np.ndarray) -> float:
+    """Spindle power [W] by numerical integration of the tangential edge force."""
+    phi_st, phi_ex = (float(v) for v in immersion_angles(cut.a_e, cut.radius, cut.mode))
+    phi = np.linspace(phi_st, phi_ex, ARC_POINTS)
+    c = feed / (cut.flutes * cut.spindle_speed / (2.0 * np.pi))
+    f_t = np.asarray(edge_forces(phi, c * np.sin(phi), cut.a_p, coeffs)[0], float).reshape(-1)
+    torque = cut.flutes / (2.0 * np.pi) * cut.radius * np.trapezoid(f_t, phi)
+    return float(torque * cut.spindle_speed)
+
+
+def check_plan(prep: Prepared, feed: np.ndarray, kinds: np.ndarray, speed: np.ndarray | None,
+               sections: list[tuple[int, int, int, float]], limits: Limits) -> CheckReport:
+    """Re-evaluate a plan independently.
+
+    Args:
+        prep: the prepared job the plan was made for.
+        feed: planned feed per sample [m/s], (n,).
+        kinds: kind code per sample, (n,).
+        speed: timed path speed per sample [m/s], (n,), or None.
+        sections: ``(start, stop, kind, feed)`` per section, in order.
+        limits: the limits to check against.
+    """
+    job = prep.job
+    params = model_parameters(job, prep)
+    model = PointModel(prep.robot, params, job.model.process_model, job.model.mass_model,
+                       job.model.chatter_criterion)
+    e, path = prep.engagement, prep.path
+    feed_dir = e.feed_dir if e.feed_dir is not None else path.feed_dir
+    codes = {0: "up", 1: "down", 2: "slot"}
+    tool = prep.tool
+    omega = job.spindle.rpm * 2.0 * np.pi / 60.0
+    viol: list[Violation] = []
+    worst: dict[str, float] = {"chatter": 0.0, "force": 0.0, "deflection": 0.0, "power": 0.0}
+
+    def add(k: int, what: str, value: float, limit: float, ratio: float) -> None:
+        worst[what] = max(worst.get(what, 0.0), ratio)
+        if ratio > 1.0 + REL_TOL:
+            viol.append(Violation(int(k), what, float(value), float(limit), path.where(k)))
+
+    cut_samples = np.flatnonzero(kinds == CUT)
+    for k in cut_samples:
+        cut = Cut(feed_dir=feed_dir[k], radial_dir=e.radial_dir[k], a_e=float(e.a_e[k]),
+                  a_p=float(e.a_p[k]), mode=codes[int(e.mode[k])], spindle_speed=omega,
+                  flutes=tool.flutes, radius=tool.radius)
+        a = model.analyze(prep.kinematics.q[k], cut, float(feed[k]))
+        add(k, "force", a.force, limits.force_max, a.force / limits.force_max)
+        d = float(np.linalg.norm(a.deflection))
+        add(k, "deflection", d, limits.deflection_tol, d / limits.deflection_tol)
+        p = _power(cut, float(feed[k]), params.coefficients)
+        add(k, "power", p, limits.power_max, p / limits.power_max)
+        if model.criterion == "gamma_window":
+            ok = a.gamma_margin > 0.0
+            value, limit = a.gamma_margin, 0.0
+        else:
+            ok = a.stable_eigen and a.margin >= limits.margin_min
+            value, limit = a.margin, limits.margin_min
+        worst["chatter"] = max(worst["chatter"], 0.0 if ok else 2.0)
+        if not ok:
+            viol.append(Violation(int(k), "chatter", float(value), float(limit), path.where(k)))
+    ds = step_lengths(path.s)
+    for a, b, kind, f in sections:
+        if kind == RAPID:
+            continue
+        if not (limits.feed_min * (1 - REL_TOL) <= f <= limits.feed_max * (1 + REL_TOL)):
+            viol.append(Violation(a, "feed_bounds", f, limits.feed_max, path.where(a)))
+    runs = kind_runs(kinds)
+    run_of = np.zeros(len(path), int)
+    for i, (a, b, _) in enumerate(runs):
+        run_of[a:b] = i
+    cut_secs = [x for x in sections if x[2] == CUT]
+    for (a0, b0, _, f0), (a1, b1, _, f1) in zip(cut_secs, cut_secs[1:], strict=False):
+        if b0 == a1 and limits.feed_change_max is not None and \
+                abs(f1 - f0) > limits.feed_change_max * (1 + 1e-6) + 1e-12:
+            viol.append(Violation(a1, "feed_change", abs(f1 - f0), limits.feed_change_max,
+                                  path.where(a1)))
+    for a, b, kind, _ in cut_secs:
+        run = runs[run_of[a]]
+        length = ds[a:b].sum()
+        if length < limits.section_length_min * (1 - 1e-9) and (run[0], run[1]) != (a, b):
+            viol.append(Violation(a, "section_length", float(length), limits.section_length_min,
+                                  path.where(a)))
+    if speed is not None:
+        over = np.flatnonzero(speed > feed * (1 + SPEED_TOL) + 1e-12)
+        for k in over[:20]:
+            viol.append(Violation(int(k), "timed_speed", float(speed[k]), float(feed[k]),
+                                  path.where(k)))
+    return CheckReport(samples_checked=int(cut_samples.size), violations=viol, worst_ratio=worst)
+
+
+def check_result(res) -> CheckReport:
+    """:func:`check_plan` on a :class:`planner.plan.PlanResult`."""
+    return check_plan(res.prep, res.feed, res.kinds, res.timing.speed,
+                      [(s.start, s.stop, s.kind, s.feed) for s in res.sections], res.limits)
