@@ -1,72 +1,56 @@
-"""The G-code interpreter behind :mod:`robot_io.gcode` (private): modal state, blocks, moves.
+"""The G-code interpreter behind :mod:`robot_io.gcode` (private): the line loop, blocks, codes, moves.
 
-Conventions are documented in :mod:`robot_io.gcode`. This module keeps the hot path lean: plain
-floats, tuples and dicts per line; numpy arrays are made once per program in :meth:`_Run.finish`.
+Conventions are documented in :mod:`robot_io.gcode`. The work is shared out:
+
+* :mod:`robot_io._gcode_plain` scans the whole program once (numpy) for *plain* lines — only
+  N/G0/G1/X/Y/Z/F words — and executes long runs of them in bulk while the modal state allows it
+  (absolute, G94, no rotary kinematics, position known): that is most of a 3-axis CAM program;
+* every other line goes through this module one at a time (:meth:`_Run.read_line`): one compiled regex
+  per line (:data:`robot_io._gcode_words.TOKEN`), plain floats, tuples and dicts;
+* arcs are in :mod:`robot_io._gcode_arcs`, homing/G53 and canned cycles in
+  :mod:`robot_io._gcode_cycles`, the modal state in :mod:`robot_io._gcode_state`;
+* moves go into the columns of :mod:`robot_io._gcode_moves`; ``Move`` objects are only made when
+  ``Toolpath.moves`` is read.
+
+Reading with ``plain=False`` runs every line through the interpreter; ``test_gcode`` checks that
+both ways give the same toolpath, warnings and errors.
 """
 
 from __future__ import annotations
 
-import math
 from collections import Counter
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from robot_io import _gcode_words as W
+from robot_io._gcode_arcs import arc
+from robot_io._gcode_cycles import canned_cycle, group0_move
+from robot_io._gcode_moves import START_GIVEN, START_PREVIOUS, START_UNKNOWN, MoveStore
+from robot_io._gcode_plain import MIN_RUN, execute_plain, plain_spans, scan_plain_lines
+from robot_io._gcode_state import DEG, PLANES, ModalState
 from robot_io.rotary import TrunnionKinematics, make_rotary_kinematics
-from robot_io.toolpath import Move, MoveKind, SourceRef, Toolpath, ToolpathError, ToolpathWarning
+from robot_io.toolpath import SourceRef, Toolpath, ToolpathError, ToolpathWarning
 
 if TYPE_CHECKING:
     from robot_io.gcode import GcodeOptions
 
 __all__ = ["run_program"]
 
-_DEG = math.pi / 180.0
-_PLANES = {  # plane → (p axis, q axis, normal axis, offset letters (p, q), word along normal)
-    170: (0, 1, 2, ("I", "J"), "K"),
-    180: (2, 0, 1, ("K", "I"), "J"),
-    190: (1, 2, 0, ("J", "K"), "I"),
-}
-_UNIT = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
-_KINDS = {0: MoveKind.RAPID, 10: MoveKind.LINEAR, 20: MoveKind.ARC_CW, 30: MoveKind.ARC_CCW}
 _MOTION = W.CANNED_CYCLES | set(W.MOTION_G)
 _MODAL = frozenset({170, 180, 190, 200, 210, 900, 910, 901, 911, 930, 940}) | (
     W.HARMLESS_G | W.WORK_OFFSETS_G | W.CUTTER_COMP_G)
 _AXES = frozenset("XYZABC")
 _ARC = frozenset("IJKR")
 _FIRST_COL = frozenset("XYZABCIJKR")
-_FIX = "read with strict=False to skip it, or remove it"
-_OBJ_NEW = object.__new__
-_OBJ_SET = object.__setattr__
+_FIX = W.FIX_HINT
 
 
-def run_program(text: str, file: str, strict: bool, opts: GcodeOptions) -> Toolpath:
-    """Interpret ``text`` as one G-code program."""
-    return _Run(file, strict, opts).run(text)
-
-
-@dataclass
-class _State:
-    """Modal state of the machine while reading (program coordinates, SI)."""
-
-    pos: list[float | None] = field(default_factory=lambda: [None, None, None])
-    rot: dict[str, float | None] = field(
-        default_factory=lambda: {"A": None, "B": None, "C": None})
-    motion: int | None = None
-    plane: int = 170
-    absolute: bool = True
-    arc_absolute: bool = False
-    scale: float = W.MM
-    inverse_time: bool = False
-    feed_raw: float | None = None
-    spindle_s: float | None = None
-    spindle_on: bool = False
-    tool: int | None = None
-    tcp: bool = False
-    retract_r_plane: bool = False
-    cycle_r: float | None = None   # sticky canned-cycle R and Z (absolute, program frame) [m]
-    cycle_z: float | None = None
+def run_program(text: str, file: str, strict: bool, opts: GcodeOptions,
+                plain: bool = True) -> Toolpath:
+    """Interpret ``text`` as one G-code program; ``plain=False`` reads every line with the
+    line-by-line interpreter (the reference the bulk path is tested against)."""
+    return _Run(file, strict, opts).run(text, plain)
 
 
 class _Run:
@@ -79,7 +63,7 @@ class _Run:
         self.kin: TrunnionKinematics | None = (
             None if opts.rotary == "none"
             else make_rotary_kinematics(opts.rotary, opts.pivot, opts.c_offset))
-        self.st = _State(scale=W.MM if opts.default_units == "mm" else W.INCH)
+        self.st = ModalState(scale=W.MM if opts.default_units == "mm" else W.INCH)
         if opts.tcp is not None:
             self.st.tcp = opts.tcp
         self.warnings: list[ToolpathWarning] = []
@@ -92,9 +76,7 @@ class _Run:
                 "name": self.kin.name, "pivot_m": list(self.kin.pivot),
                 "c_offset_m": list(self.kin.c_offset), "tcp_option": opts.tcp},
         }
-        # Pending moves: tips (tuples) and records; numpy and Move objects are built in finish().
-        self.tips: list[tuple[float, float, float]] = []
-        self.recs: list[tuple] = []
+        self.store = MoveStore(file)
         self.last_tip: tuple[float, float, float] | None = None
         self.initial_tip: tuple[float, float, float] | None = None
         if opts.initial_position is not None:
@@ -106,6 +88,7 @@ class _Run:
         self.tcp_hint: int | None = None
         self.ended = False
         self.end_line = 0
+        self.after_end = 0   # lines after M2/M30
         self.line = 0
         self.keys: dict[str, int | None] = {}   # G/M number text → code key
         self.first_line = 0                      # first line that is not blank
@@ -131,71 +114,86 @@ class _Run:
             self.skipped[skip] += 1
 
     # ------------------------------------------------------------------ the line loop
-    def run(self, text: str) -> Toolpath:
+    def run(self, text: str, plain: bool = True) -> Toolpath:
+        lines = text.split("\n")
+        nlines = len(lines)
+        scan = scan_plain_lines(text, nlines) if plain else None
+        done = 0
+        for a, b in ([] if scan is None else plain_spans(scan, MIN_RUN)):
+            for i in range(done, a):
+                self.read_line(i + 1, lines[i])
+            while a < b:
+                c = execute_plain(self, scan, a, b) if b - a >= MIN_RUN else a
+                if c < b:   # the bulk path stopped: this line needs the interpreter
+                    self.read_line(c + 1, lines[c])
+                    c += 1
+                a = c
+            done = b
+        for i in range(done, nlines):
+            self.read_line(i + 1, lines[i])
+        if self.after_end:
+            self.skipped["after_program_end"] += self.after_end
+            self.warn(0, "after_program_end", f"{self.after_end} line(s) after M2/M30 ignored "
+                      "(the machine stops at the program end)", line=self.end_line)
+        return self.finish(nlines)
+
+    def read_line(self, number: int, raw: str) -> None:
+        """Read and execute line ``number`` (1-based) as written."""
         findall = W.TOKEN.findall
-        table = W.ASCII_UPPER
         keys = self.keys
         first_col = _FIRST_COL
-        after_end = 0
-        nlines = 0
-        for nlines, raw in enumerate(text.split("\n"), 1):  # noqa: B007 (nlines used after)
-            line = raw.rstrip()
-            if not line:
-                continue
-            if self.ended:
-                after_end += line.strip() != "%"
-                continue
-            self.line = nlines
-            if not self.first_line:
-                self.first_line = nlines
-            u = line.upper() if line.isascii() else line.translate(table)
-            first = u[0]
-            if first == " " or first == "\t":
-                first = u.lstrip()[0]
-            if first == "%" or first == "/":
-                u = self.percent_or_slash(u, first)
-                if u is None:
-                    continue
-            # Fast path: a line of words only. Every letter on it starts a word, so a word's
-            # column is where its letter is found (G and M searched onwards from the previous).
-            words: dict[str, tuple[float, int]] = {}
-            codes: list[tuple[str, int | None, int, str]] | None = None
-            col0 = gpos = mpos = 0
-            for letter, num, _c, _e, _o, _g in findall(u):
-                if not letter:
-                    break
-                if letter == "G" or letter == "M":
-                    key = keys.get(num, -1)
-                    if key == -1:
-                        key = keys[num] = W.code_key(num) if len(num) < 12 else None
-                    if letter == "G":
-                        col = gpos = u.find("G", gpos) + 1
-                    else:
-                        col = mpos = u.find("M", mpos) + 1
-                    if codes is None:
-                        codes = [(letter, key, col, num)]
-                    else:
-                        codes.append((letter, key, col, num))
-                elif letter != "N":
-                    if letter in words or (len(num) > 10 and abs(float(num)) > W.MAX_WORD_VALUE):
-                        break   # let the slow path say what is wrong, with the column
-                    col = u.find(letter) + 1
-                    if not col0 and letter in first_col:
-                        col0 = col
-                    words[letter] = (float(num), col)
-            else:
-                if words or codes:
-                    self.block(words, codes, col0)
-                continue
-            self.raw = line
-            parsed = self.slow_tokens(u)
-            if parsed is not None and (parsed[0] or parsed[1]):
-                self.block(*parsed)
-        if after_end:
-            self.skipped["after_program_end"] += after_end
-            self.warn(0, "after_program_end", f"{after_end} line(s) after M2/M30 ignored (the "
-                      "machine stops at the program end)", line=self.end_line)
-        return self.finish(nlines)
+        line = raw.rstrip()
+        if not line:
+            return
+        if self.ended:
+            self.after_end += line.strip() != "%"
+            return
+        self.line = number
+        if not self.first_line:
+            self.first_line = number
+        u = line.upper() if line.isascii() else line.translate(W.ASCII_UPPER)
+        first = u[0]
+        if first == " " or first == "\t":
+            first = u.lstrip()[0]
+        if first == "%" or first == "/":
+            u = self.percent_or_slash(u, first)
+            if u is None:
+                return
+        # Words only (the common case): every letter on the line starts a word, so a word's
+        # column is where its letter is found (G and M searched onwards from the previous).
+        words: dict[str, tuple[float, int]] = {}
+        codes: list[tuple[str, int | None, int, str]] | None = None
+        col0 = gpos = mpos = 0
+        for letter, num, _c, _e, _o, _g in findall(u):
+            if not letter:
+                break
+            if letter == "G" or letter == "M":
+                key = keys.get(num, -1)
+                if key == -1:
+                    key = keys[num] = W.code_key(num) if len(num) < 12 else None
+                if letter == "G":
+                    col = gpos = u.find("G", gpos) + 1
+                else:
+                    col = mpos = u.find("M", mpos) + 1
+                if codes is None:
+                    codes = [(letter, key, col, num)]
+                else:
+                    codes.append((letter, key, col, num))
+            elif letter != "N":
+                if letter in words or (len(num) > 10 and abs(float(num)) > W.MAX_WORD_VALUE):
+                    break   # let the slow path say what is wrong, with the column
+                col = u.find(letter) + 1
+                if not col0 and letter in first_col:
+                    col0 = col
+                words[letter] = (float(num), col)
+        else:
+            if words or codes:
+                self.block(words, codes, col0)
+            return
+        self.raw = line
+        parsed = self.slow_tokens(u)
+        if parsed is not None and (parsed[0] or parsed[1]):
+            self.block(*parsed)
 
     def percent_or_slash(self, u: str, first: str) -> str | None:
         """A ``%`` line (``None``: nothing to read) or a ``/`` block-delete line (read it)."""
@@ -334,16 +332,16 @@ class _Run:
             col0 = col0 or motion_col
         has_axes = not _AXES.isdisjoint(words)
         if group0 is not None and group0[0] != 40:
-            self.group0_move(group0[0], group0[1], words)
+            group0_move(self, group0[0], group0[1], words)
         elif st.motion is not None and (has_axes or (st.motion >= 20 and st.motion <= 30
                                                       and not _ARC.isdisjoint(words))):
             code = st.motion
             if code in W.CANNED_CYCLES:
-                self.cycle(code, col0, words)
+                canned_cycle(self, code, col0, words)
             else:
                 pos, rot = self.target(words) if has_axes else (st.pos, st.rot)
                 if code >= 20:
-                    self.arc(code, col0, words, pos, rot, line_f)
+                    arc(self, code, col0, words, pos, rot, line_f)
                 else:
                     self.emit(code, col0, pos, rot, line_f)
                     if not _ARC.isdisjoint(words):
@@ -429,7 +427,7 @@ class _Run:
     def modal_codes(self, modal: list) -> None:
         st = self.st
         for key, col in modal:
-            if key in _PLANES:
+            if key in PLANES:
                 st.plane = key
             elif key == 200 or key == 210:
                 self.units = self.units or ("inch" if key == 200 else "mm")
@@ -486,9 +484,9 @@ class _Run:
                                  "'xyzbc-trunnion'), or read with strict=False to keep the raw "
                                  "angle in Move.extra", skip="rotary_word")
                 if absolute:
-                    rot[letter] = w[0] * _DEG
+                    rot[letter] = w[0] * DEG
                 elif rot[letter] is not None:
-                    rot[letter] += w[0] * _DEG
+                    rot[letter] += w[0] * DEG
         return pos, rot
 
     def tip(self, pos: list, rot: dict) -> tuple[float, float, float] | None:
@@ -531,24 +529,27 @@ class _Run:
                 feed = st.feed_raw * st.scale / 60.0
         if self.units is None and self.default_units_line is None:
             self.default_units_line = self.line
+        sparse: dict[str, Any] | None = None
         if start is None:
             self.meta["unknown_start_moves"] += 1
-        elif start is self.initial_tip and not self.tips:
-            start = self.initial_tip
+            flag = START_UNKNOWN
+        elif start is self.initial_tip and not self.store.count:
+            flag = START_GIVEN
+            sparse = {"start": _frozen(start)}
         else:
-            start = True   # the previous move's end
-        axis = None
-        extra = None
+            flag = START_PREVIOUS
+        if arc is not None:
+            sparse = sparse or {}
+            sparse.update(center=_frozen(arc[0]), normal=_frozen(arc[1]), turns=arc[2])
         if self.rot_used:
-            extra = {k: v for k, v in rot.items() if v is not None}
+            sparse = sparse or {}
+            sparse["extra"] = {k: v for k, v in rot.items() if v is not None}
             if self.kin is not None:
                 tilt, c = rot[self.kin.tilt], rot["C"]
                 if tilt is not None and c is not None:
-                    axis = self.kin.tool_axis(tilt, c)
+                    sparse["tool_axis"] = _frozen(self.kin.tool_axis(tilt, c))
         spindle = None if st.spindle_s is None else (st.spindle_s if st.spindle_on else 0.0)
-        self.tips.append(tip)
-        self.recs.append((code, self.line, col, start, feed, duration, arc, axis, spindle,
-                          st.tool, extra))
+        self.store.add(code, self.line, col, tip, flag, feed, duration, spindle, st.tool, sparse)
         self.last_tip = tip
 
     def unknown_end(self, col: int, pos: list, rot: dict) -> None:
@@ -560,212 +561,6 @@ class _Run:
         self.warn(col, "unknown_position", f"move skipped: position of {'/'.join(missing)} not "
                   "known yet (program start, G28/G30 or G53); program every axis absolutely "
                   "first, or pass initial_position=")
-
-    # ------------------------------------------------------------------ arcs
-    def arc(self, code: int, col: int, words: dict, pos: list, rot: dict,
-            line_f: float | None) -> None:
-        st = self.st
-        p, q, n, (lp, lq), lnormal = _PLANES[st.plane]
-        start = st.pos
-        if None in start or None in pos:
-            self.arc_skip(col, "arc skipped: it starts from a position not known yet (program "
-                          "start, G28/G30 or G53); move there absolutely first", pos, rot,
-                          unknown=True)
-            return
-        sp, sq, ep, eq = start[p], start[q], pos[p], pos[q]
-        wn = words.get(lnormal)
-        if wn is not None and wn[0] != 0.0:
-            self.problem(wn[1], "arc_normal_word", f"{lnormal}{wn[0]:g} on a "
-                         f"{W.code_name('G', st.plane)} arc: the offset along the plane normal "
-                         f"must be 0 (a helix gives its travel as the axis word, e.g. Z in G17); "
-                         f"{_FIX}", skip="arc_normal_word")
-        scale = st.scale
-        tol_a, tol_r = self.opts.arc_radius_tol, self.opts.arc_radius_rtol
-        if "R" in words:
-            r, rcol = words["R"]
-            if lp in words or lq in words:
-                self.problem(rcol, "arc_format", "arc with both R and I/J/K: use one format",
-                             skip="arc_format")
-            r *= scale
-            dp, dq = ep - sp, eq - sq
-            d = math.hypot(dp, dq)
-            if d <= W.ARC_MIN_RADIUS:
-                self.arc_skip(rcol, "R-format arc with end = start: R cannot describe a full "
-                              "circle; use I/J/K", pos, rot)
-                return
-            half = 0.5 * d
-            if abs(r) < half - max(tol_a, tol_r * abs(r)):
-                self.arc_skip(rcol, f"R {abs(r) / scale:g} is smaller than half the chord "
-                              f"({half / scale:g}): no arc fits; fix R or the end point",
-                              pos, rot)
-                return
-            h = math.sqrt(max(r * r - half * half, 0.0))
-            # centre left of the chord (seen along the normal) for a short CCW or long CW arc
-            side = (1.0 if code == 30 else -1.0) * (1.0 if r > 0 else -1.0)
-            cp = sp + 0.5 * dp - side * h * dq / d
-            cq = sq + 0.5 * dq + side * h * dp / d
-        else:
-            wp, wq = words.get(lp), words.get(lq)
-            if wp is None and wq is None:
-                self.arc_skip(col, f"arc without centre: give {lp}/{lq} (or R) for "
-                              f"{W.code_name('G', st.plane)}", pos, rot)
-                return
-            if st.arc_absolute:
-                if wp is None or wq is None:
-                    self.arc_skip(col, f"G90.1 (absolute arc centre) needs both {lp} and {lq}",
-                                  pos, rot)
-                    return
-                cp, cq = wp[0] * scale, wq[0] * scale
-            else:
-                cp = sp + (wp[0] * scale if wp is not None else 0.0)
-                cq = sq + (wq[0] * scale if wq is not None else 0.0)
-            r0 = math.hypot(sp - cp, sq - cq)
-            r1 = math.hypot(ep - cp, eq - cq)
-            if r0 < W.ARC_MIN_RADIUS:
-                self.arc_skip(col, "arc of zero radius (centre = start); fix I/J/K", pos, rot)
-                return
-            tol = max(tol_a, tol_r * r0)
-            if abs(r1 - r0) > tol:
-                self.problem(col, "arc_radius", f"arc radius differs at start ({r0 / scale:.6g})"
-                             f" and end ({r1 / scale:.6g}) by more than the tolerance "
-                             f"({tol / scale:.3g}); fix the centre or the end point, or widen "
-                             "arc_radius_tol")
-        turns = 0
-        if "P" in words:
-            pv, pcol = words["P"]
-            if pv != int(pv) or not 1 <= pv <= W.MAX_ARC_TURNS:
-                self.arc_skip(pcol, f"arc P (turns) must be an integer 1…{W.MAX_ARC_TURNS}, "
-                              f"got P{pv:g}", pos, rot)
-                return
-            turns = int(pv) - 1
-        center = [0.0, 0.0, 0.0]
-        center[p], center[q], center[n] = cp, cq, start[n]
-        normal = _UNIT[n]
-        if self.kin is not None and not st.tcp:
-            t0, c0 = st.rot[self.kin.tilt], st.rot["C"]
-            t1, c1 = rot[self.kin.tilt], rot["C"]
-            if (t0, c0) != (t1, c1) and t0 is not None and c0 is not None:
-                self.arc_skip(col, "arc while the table turns (A/B/C change) in identity "
-                              "kinematics is no planar arc in the workpiece frame; turn the "
-                              "table in a separate block or use TCP (M428)", pos, rot)
-                return
-            if t1 is not None and c1 is not None:
-                center = list(self.kin.tip((center[0], center[1], center[2]), t1, c1))
-                normal = self.kin.rotate_to_workpiece(normal, t1, c1)
-        self.emit(code, col, pos, rot, line_f, arc=(tuple(center), normal, turns))
-
-    def arc_skip(self, col: int, reason: str, pos: list, rot: dict,
-                 unknown: bool = False) -> None:
-        """An arc that cannot be built: strict raises (unless only its start is unknown);
-        otherwise it is skipped, counted, and the position still moves to its end."""
-        if unknown:
-            self.skipped["unknown_position"] += 1
-            self.warn(col, "unknown_position", reason)
-        else:
-            self.problem(col, "bad_arc", reason, skip="bad_arc")
-        self.st.pos, self.st.rot = pos, rot
-        self.last_tip = None
-
-    # ------------------------------------------------------------------ G28 / G30 / G53
-    def group0_move(self, key: int, col: int, words: dict) -> None:
-        st = self.st
-        named = [i for i, k in enumerate("XYZ") if k in words]
-        named_rot = [k for k in "ABC" if k in words]
-        if key == 530:
-            if st.motion not in (0, 10):
-                self.problem(col, "machine_coordinates", "G53 needs G0 or G1 in force; add G0",
-                             skip="machine_coordinates")
-            pos, rot = list(st.pos), dict(st.rot)
-            for i in named:
-                pos[i] = None
-            for k in named_rot:
-                rot[k] = None
-            st.pos, st.rot, self.last_tip = pos, rot, None
-            self.skipped["machine_coordinates"] += 1
-            self.warn(col, "machine_coordinates", "G53 move in machine coordinates skipped: its "
-                      "end is unknown in the workpiece frame until the axes are programmed again")
-            return
-        self.meta["homing_blocks"] += 1
-        pos, rot = self.target(words)
-        if pos != st.pos or rot != st.rot:   # the intermediate point
-            self.emit(0, col, pos, rot, None)
-        home = self.opts.home_position
-        if not named and not named_rot:
-            named, named_rot = [0, 1, 2], ["A", "B", "C"]
-        pos, rot = list(st.pos), dict(st.rot)
-        for i in named:
-            pos[i] = None if home is None else home[i]
-        for k in named_rot:
-            rot[k] = None if home is None else 0.0
-        if home is not None:
-            self.emit(0, col, pos, rot, None)
-        else:
-            st.pos, st.rot, self.last_tip = pos, rot, None
-
-    # ------------------------------------------------------------------ canned cycles
-    def cycle(self, code: int, col: int, words: dict) -> None:
-        st = self.st
-        name = W.code_name("G", code)
-        z0 = st.pos[2]
-        reason = None
-        if st.plane != 170:
-            reason = f"{name} outside G17 is not supported; program the moves"
-        elif st.inverse_time:
-            reason = f"{name} in G93 inverse time: give the cycle a G94 feed"
-        elif z0 is None:
-            reason = f"{name} from an unknown Z: move Z absolutely before the cycle"
-        if reason is not None:
-            self.problem(col, "canned_cycle", f"{reason}, or {_FIX}", skip="canned_cycle")
-            return
-        scale = st.scale
-        r_abs, z_abs = st.cycle_r, st.cycle_z
-        if "R" in words:
-            r_abs = words["R"][0] * scale + (0.0 if st.absolute else z0)
-        if "Z" in words and r_abs is not None:
-            z_abs = words["Z"][0] * scale + (0.0 if st.absolute else r_abs)
-        reps = 1
-        if "L" in words:
-            lv = words["L"][0]
-            reps = int(lv) if lv == int(lv) and 1 <= lv <= 10000 else 0
-        if r_abs is None or z_abs is None or reps == 0:
-            self.problem(col, "canned_cycle", f"{name} needs R (retract plane), Z (bottom) and "
-                         f"an integer L in 1…10000 if any; add them, or {_FIX}",
-                         skip="canned_cycle")
-            return
-        st.cycle_r, st.cycle_z = r_abs, z_abs
-        clear = r_abs if st.retract_r_plane else max(z0, r_abs)
-        expand = code in W.EXPANDED_CYCLES
-        if not expand:
-            self.skipped["canned_cycle_not_expanded"] += 1
-            self.warn(col, "canned_cycle_not_expanded", f"canned cycle {name} not expanded: its "
-                      "moves are missing from the toolpath (the position after it is kept)")
-        elif st.feed_raw is None:
-            self.problem(col, "missing_feed", f"{name} without a feed rate; add an F word",
-                         skip="missing_feed")
-        rot = st.rot
-        x, y = st.pos[0], st.pos[1]
-        for rep in range(reps):
-            if "X" in words:
-                v = words["X"][0] * scale
-                x = v if st.absolute else (None if x is None else x + v)
-            if "Y" in words:
-                v = words["Y"][0] * scale
-                y = v if st.absolute else (None if y is None else y + v)
-            # (kind, x, y, z); z None = stay at the current height
-            steps = [(0, x, y, None), (0, x, y, r_abs), (10, x, y, z_abs), (0, x, y, clear)]
-            if rep == 0 and z0 < r_abs:
-                steps.insert(0, (0, st.pos[0], st.pos[1], r_abs))
-            for kind, sx, sy, sz in steps:
-                target = [sx, sy, st.pos[2] if sz is None else sz]
-                if target == st.pos:
-                    continue
-                if expand:
-                    self.emit(kind, col, target, rot, None)
-                else:
-                    st.pos = target
-                    self.last_tip = None
-            if expand and code == 820 and "P" in words:
-                self.meta["dwell_s"] += max(words["P"][0], 0.0)
 
     # ------------------------------------------------------------------ the result
     def finish(self, nlines: int) -> Toolpath:
@@ -780,46 +575,8 @@ class _Run:
         self.meta["lines"] = nlines
         self.meta["work_offsets"] = sorted(set(self.meta["work_offsets"]))
         return Toolpath(file=self.file, format="gcode",
-                        units=self.units or self.opts.default_units, moves=self.build_moves(),
+                        units=self.units or self.opts.default_units, moves=self.store.finish(),
                         warnings=self.warnings, skipped=self.skipped, meta=self.meta)
-
-    def build_moves(self) -> list[Move]:
-        """The pending records as :class:`Move` objects sharing one read-only end array.
-
-        Moves are made without the frozen-dataclass ``__init__`` (13 ``object.__setattr__``
-        calls, ~5 µs per move — most of the reading time); ``test_gcode`` checks that the result
-        equals ``Move(**fields)``.
-        """
-        ends = np.array(self.tips, dtype=float).reshape(-1, 3)
-        ends.flags.writeable = False
-        rows = list(ends)
-        file = self.file
-        kinds = _KINDS
-        moves: list[Move] = []
-        append = moves.append
-        prev = None
-        for i, (code, line, col, start, feed, duration, arc, axis, spindle, tool,
-                extra) in enumerate(self.recs):
-            end = rows[i]
-            src = _OBJ_NEW(SourceRef)
-            _OBJ_SET(src, "__dict__", {"file": file, "line": line, "column": col})
-            if start is True:
-                start = prev
-            elif start is not None:
-                start = _frozen(start)
-            center = normal = None
-            turns = 0
-            if arc is not None:
-                center, normal, turns = _frozen(arc[0]), _frozen(arc[1]), arc[2]
-            mv = _OBJ_NEW(Move)
-            _OBJ_SET(mv, "__dict__", {
-                "kind": kinds[code], "start": start, "end": end, "source": src, "feed": feed,
-                "duration": duration, "center": center, "normal": normal, "turns": turns,
-                "tool_axis": None if axis is None else _frozen(axis), "spindle_rpm": spindle,
-                "tool": tool, "extra": {} if extra is None else extra})
-            append(mv)
-            prev = end
-        return moves
 
 
 def _garbage_reason(u: str, col: int) -> str:

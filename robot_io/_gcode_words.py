@@ -16,6 +16,7 @@ __all__ = [
     "CANNED_CYCLES",
     "CUTTER_COMP_G",
     "EXPANDED_CYCLES",
+    "FIX_HINT",
     "HARMLESS_G",
     "HARMLESS_M",
     "IGNORED_WORDS",
@@ -47,6 +48,8 @@ MAX_ARC_TURNS = 1000
 #: Largest magnitude of any word's number [program units]; beyond it the number is garbage
 #: (a km-sized move in mm, or a 1e300 that would overflow squares).
 MAX_WORD_VALUE = 1e9
+#: How to get past a problem, appended to strict-mode messages.
+FIX_HINT = "read with strict=False to skip it, or remove it"
 #: Warnings kept per category; further ones are only counted (``meta["warning_counts"]``).
 MAX_WARNINGS_PER_CATEGORY = 50
 

@@ -15,8 +15,9 @@ from __future__ import annotations
 import enum
 import math
 from collections import Counter
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any, Protocol, overload
 
 import numpy as np
 
@@ -25,6 +26,7 @@ from models.errors import CctmillError
 __all__ = [
     "Move",
     "MoveKind",
+    "MoveList",
     "SourceRef",
     "Toolpath",
     "ToolpathError",
@@ -157,7 +159,8 @@ class Toolpath:
         file: the file read.
         format: ``"gcode"``, ``"apt"`` or ``"krl"``.
         units: units the file was written in (``"mm"`` or ``"inch"``); moves are in metres.
-        moves: the moves, in program order.
+        moves: the moves, in program order: a ``list`` of :class:`Move`, or (from the G-code
+            reader) a :class:`MoveList`, which reads the same and builds each ``Move`` on access.
         warnings: everything noticed but not fatal.
         skipped: count of records/words skipped, by category (nothing is dropped silently).
         meta: reader-specific facts (e.g. ``{"program": "1117_wall", "rotary_kinematics": ...}``).
@@ -166,10 +169,135 @@ class Toolpath:
     file: str
     format: str
     units: str
-    moves: list[Move] = field(default_factory=list)
+    moves: Sequence[Move] = field(default_factory=list)
     warnings: list[ToolpathWarning] = field(default_factory=list)
     skipped: Counter = field(default_factory=Counter)
     meta: dict[str, Any] = field(default_factory=dict)
+
+
+_KIND_ORDER = (MoveKind.RAPID, MoveKind.LINEAR, MoveKind.ARC_CW, MoveKind.ARC_CCW)
+_OBJ_NEW = object.__new__
+_OBJ_SET = object.__setattr__
+
+
+class MoveList(Sequence[Move]):
+    """The moves of a program stored as columns; each :class:`Move` is built on first access.
+
+    Reads like the ``list`` of moves it stands for (``len``, indexing, negative indices, slices
+    → ``list``, iteration, ``==`` against a list); a move is built once and then kept, so
+    ``moves[i] is moves[i]`` and ``moves[i + 1].start is moves[i].end`` as in a list of moves.
+    A reader fills it with one numpy array per field instead of one object per move, which is
+    what makes reading large programs fast; code that only needs the end points can use
+    :attr:`ends` without building any :class:`Move`.
+
+    Args:
+        file: the file every ``SourceRef`` names.
+        ends: end points [m], shape (n, 3); kept read-only.
+        kinds: index into (RAPID, LINEAR, ARC_CW, ARC_CCW), shape (n,).
+        lines, columns: ``SourceRef`` line and column, shape (n,).
+        feeds: feed [m/s], NaN for ``None``, shape (n,).
+        durations: inverse-time duration [s], NaN for ``None``, shape (n,).
+        spindles: spindle speed [rev/min], NaN for ``None``, shape (n,).
+        tools: tool number, -1 for ``None``, shape (n,).
+        starts: 0 = start unknown (``None``), 1 = the previous move's end, 2 = given in
+            ``sparse[i]["start"]``, shape (n,).
+        sparse: the rare fields by move index: ``{"start", "center", "normal", "turns",
+            "tool_axis", "extra"}`` (arrays read-only), any subset.
+    """
+
+    def __init__(self, file: str, ends: np.ndarray, kinds: np.ndarray, lines: np.ndarray,
+                 columns: np.ndarray, feeds: np.ndarray, durations: np.ndarray,
+                 spindles: np.ndarray, tools: np.ndarray, starts: np.ndarray,
+                 sparse: dict[int, dict[str, Any]]) -> None:
+        n = len(ends)
+        ends = np.asarray(ends, dtype=float).reshape(n, 3)
+        ends.flags.writeable = False
+        cols = (kinds, lines, columns, feeds, durations, spindles, tools, starts)
+        if any(len(c) != n for c in cols):
+            raise ValueError("MoveList columns must all have one entry per move")
+        self._file = file
+        self._ends = ends
+        self._cols = cols
+        self._sparse = sparse
+        self._lists: tuple[list, ...] | None = None
+        self._moves: list[Move | None] = [None] * n
+
+    @property
+    def ends(self) -> np.ndarray:
+        """End points of all moves [m], shape (n, 3), read-only (``moves[i].end`` is row i)."""
+        return self._ends
+
+    def __len__(self) -> int:
+        return len(self._moves)
+
+    @overload
+    def __getitem__(self, index: int) -> Move: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> list[Move]: ...
+
+    def __getitem__(self, index: int | slice) -> Move | list[Move]:
+        if isinstance(index, slice):
+            return [self._get(i) for i in range(*index.indices(len(self._moves)))]
+        i = index.__index__()
+        if i < 0:
+            i += len(self._moves)
+        if not 0 <= i < len(self._moves):
+            raise IndexError("move index out of range")
+        return self._get(i)
+
+    def __iter__(self) -> Iterator[Move]:
+        if None in self._moves:
+            for i, m in enumerate(self._moves):
+                if m is None:
+                    self._build(i)
+        return iter(self._moves)  # type: ignore[arg-type]
+
+    def __eq__(self, other: object) -> bool:
+        if isinstance(other, (MoveList, list)):
+            return list(self) == list(other)
+        return NotImplemented
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __repr__(self) -> str:
+        return f"MoveList({len(self._moves)} moves, file={self._file!r})"
+
+    def _get(self, i: int) -> Move:
+        m = self._moves[i]
+        return self._build(i) if m is None else m
+
+    def _build(self, i: int) -> Move:
+        """Make move ``i`` without the frozen-dataclass ``__init__`` (13 ``object.__setattr__``
+        calls); ``test_gcode`` checks that the result equals ``Move(**fields)``."""
+        if self._lists is None:   # Python scalars and row views, made once
+            self._lists = (*(c.tolist() for c in self._cols), list(self._ends))
+        kinds, lines, columns, feeds, durations, spindles, tools, starts, rows = self._lists
+        sp = self._sparse.get(i)
+        flag = starts[i]
+        if flag == 1:
+            start = rows[i - 1] if i else None
+        elif flag == 2 and sp is not None:
+            start = sp["start"]
+        else:
+            start = None
+        feed, duration, spindle, tool = feeds[i], durations[i], spindles[i], tools[i]
+        src = _OBJ_NEW(SourceRef)
+        _OBJ_SET(src, "__dict__", {"file": self._file, "line": lines[i], "column": columns[i]})
+        mv = _OBJ_NEW(Move)
+        _OBJ_SET(mv, "__dict__", {
+            "kind": _KIND_ORDER[kinds[i]], "start": start, "end": rows[i], "source": src,
+            "feed": None if feed != feed else feed,
+            "duration": None if duration != duration else duration,
+            "center": None if sp is None else sp.get("center"),
+            "normal": None if sp is None else sp.get("normal"),
+            "turns": 0 if sp is None else sp.get("turns", 0),
+            "tool_axis": None if sp is None else sp.get("tool_axis"),
+            "spindle_rpm": None if spindle != spindle else spindle,
+            "tool": None if tool < 0 else tool,
+            "extra": {} if sp is None or "extra" not in sp else sp["extra"]})
+        self._moves[i] = mv
+        return mv
 
 
 def read_source_text(file: str) -> tuple[str, str]:
