@@ -387,3 +387,40 @@ def test_client_counts_bad_replies_and_keeps_running(reply):
         stop.set()
         t.join()
         lsock.close()
+
+
+# -- cctmill robot-sim kvp ------------------------------------------------------------------------------
+
+def test_cli_robot_sim_kvp_serves_until_the_duration(capsys):
+    from planner.cli import main
+
+    result = {}
+    t = threading.Thread(target=lambda: result.setdefault(
+        "rc", main(["robot-sim", "kvp", "--port", "0", "--duration-s", "1.0", "--stats-every-s", "0.2",
+                    "--no-count-trailer"])))
+    t.start()
+    seen: list[str] = []
+    try:
+        assert wait_for(lambda: "listening on" in "".join(seen.append(capsys.readouterr().out) or seen))
+        out = "".join(seen)
+        port = int(out.split("listening on 127.0.0.1:")[1].split()[0])
+        client = py_openshowvar.openshowvar("127.0.0.1", port)
+        try:
+            assert client.write("$OV_PRO", "55", debug=False) == b"55"
+        finally:
+            client.close()
+    finally:
+        t.join()
+    out += capsys.readouterr().out
+    assert result["rc"] == 0
+    assert "excludes the trailer" in out
+    assert out.strip().splitlines()[-1].split("$OV_PRO ")[1].startswith("55 ")
+
+
+def test_cli_robot_sim_refuses_bad_flags(capsys):
+    from planner.cli import main
+
+    assert main(["robot-sim", "rsi", "--port", "0"]) == 2
+    assert "--port" in capsys.readouterr().err
+    assert main(["robot-sim", "kvp", "--port", "0", "--duration-s", "-1"]) == 2
+    assert "--duration-s" in capsys.readouterr().err

@@ -286,3 +286,29 @@ def test_sim_stops_with_rsibad_after_timeout_packets():
             assert sim.status == "RSIBad"
     assert sim.stats.late == sim.stats.max_consecutive_late == 10
     assert fake.received == 10
+
+
+# -- cctmill robot-sim rsi ------------------------------------------------------------------------------
+
+def test_cli_robot_sim_rsi_talks_to_a_server(capsys):
+    from planner.cli import main
+
+    with RsiServer(cycle_ms=12) as srv:
+        srv.set_override(35)
+        rc = main(["robot-sim", "rsi", "--port", str(srv.address[1]), "--cycle-ms", "12",
+                   "--duration-s", "0.4", "--stats-every-s", "0.1"])
+    out = capsys.readouterr().out
+    assert rc == 0
+    last = out.strip().splitlines()[-1]
+    assert "$OV_PRO 35" in last and "malformed 0" in last
+    assert srv.stats.replies >= 10 and srv.missed_cycles <= srv.stats.replies // 10
+
+
+def test_cli_robot_sim_rsi_reports_rsibad(capsys):
+    from planner.cli import main
+
+    with FakeServer(lambda rob: None) as fake:
+        rc = main(["robot-sim", "rsi", "--port", str(fake.address[1]), "--timeout-packets", "5",
+                   "--duration-s", "5"])
+    assert rc == 1
+    assert "RSIBad" in capsys.readouterr().out
