@@ -15,7 +15,12 @@ from robot_io.krl import (
 )
 from robot_io.krl_lint import LintProblem, lint_krl
 from robot_io.krl_reader import read_krl, read_krl_text
+from robot_io.kvp import KvpClient, KvpConnection
+from robot_io.kvp_sim import KvpSimServer
 from robot_io.readers import FORMATS, detect_format, read_toolpath
+from robot_io.robot_link import LinkError, LinkStats, LinkStatus, ProtocolError, RobotLink
+from robot_io.rsi import RsiServer
+from robot_io.rsi_sim import RsiSimController
 from robot_io.toolpath import (
     Move,
     MoveKind,
@@ -35,9 +40,19 @@ __all__ = [
     "KrlMove",
     "KrlProgramSpec",
     "KrlSection",
+    "KvpClient",
+    "KvpConnection",
+    "KvpSimServer",
+    "LinkError",
+    "LinkStats",
+    "LinkStatus",
     "LintProblem",
     "Move",
     "MoveKind",
+    "ProtocolError",
+    "RobotLink",
+    "RsiServer",
+    "RsiSimController",
     "SourceRef",
     "Toolpath",
     "ToolpathError",
