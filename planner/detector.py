@@ -70,6 +70,9 @@ OVERSAMPLE = 16
 TRANSIENT_GAIN = 1.5
 #: How long after the commanded change the real force step may come [s] (link + path response).
 TRANSIENT_SLACK_S = 0.15
+#: A band RMS below this fraction of the signal's peak is rounding, not content (a constant signal
+#: leaves ~1e-16 through the filters, whose taps sum to zero only to machine precision).
+NO_CONTENT_REL = 1e-12
 #: Deepest level considered (f_s / 2^13 is below 1 Hz for any f_s up to 8 kHz).
 MAX_LEVEL = 14
 
@@ -316,7 +319,8 @@ class Detector:
         mon = BandMonitor(self.choice.level, self.monitor.wavelet)
         _, d = mon.push(np.arange(v.shape[0]) / self.fs_hz, v)
         sigma = float(np.sqrt(np.mean(d * d)))
-        if not (math.isfinite(sigma) and sigma > 0):
+        scale = float(np.max(np.abs(v))) if v.size else 0.0
+        if not (math.isfinite(sigma) and sigma > NO_CONTENT_REL * scale and sigma > 0):
             raise InputError("stable window", f"band RMS is {sigma}: the record has no content in "
                              f"the band {self.choice.band_hz[0]:.3g}-{self.choice.band_hz[1]:.3g} Hz")
         self.sigma = sigma
