@@ -17,6 +17,9 @@ from models.analysis import OUTPUTS, Cut, ModelParameters, point_function
 from models.errors import InputError, SingularPoseError
 from models.robot import Robot
 
+#: Helix angle [rad] the ``floquet`` criterion uses when none is given (the shipped tool's 30°).
+DEFAULT_HELIX_ANGLE = float(np.radians(30.0))
+
 __all__ = [
     "CRITERIA",
     "JACOBIAN_LENGTH",
@@ -26,7 +29,7 @@ __all__ = [
     "StabilityCharacteristic",
 ]
 
-CRITERIA = ("eigen", "gamma_window")
+CRITERIA = ("eigen", "floquet", "gamma_window")
 
 #: Smallest singular value of the TCP Jacobian's *linear* rows [m/rad] below which a pose counts
 #: as singular. The KR 210's arm is 2.7 m long: 5 mm of TCP motion per radian is a near-singular
@@ -80,6 +83,13 @@ class PointAnalysis:
     principal_directions: np.ndarray
     jacobian_sigma_min: float
     warnings: tuple[str, ...]
+    floquet_radius: float | None = None
+    """Spectral radius of the monodromy matrix (``floquet`` criterion only; SPEC §5, §6)."""
+
+    @property
+    def floquet_margin(self) -> float:
+        """1 − ρ [-] of the ``floquet`` criterion (> 0 stable); NaN for the other criteria."""
+        return 1.0 - self.floquet_radius if self.floquet_radius is not None else float("nan")
 
     @property
     def force(self) -> float:
@@ -91,6 +101,8 @@ class PointAnalysis:
         """Verdict of the chosen criterion."""
         if self.criterion == "gamma_window":
             return self.gamma_margin > 0.0
+        if self.criterion == "floquet":
+            return self.floquet_radius is not None and self.floquet_radius < 1.0
         return self.stable_eigen
 
 
@@ -101,7 +113,7 @@ class StabilityCharacteristic:
     Attributes:
         feeds: [m/s], shape (k,).
         gamma: [rad], shape (k,).
-        margin: [N/m] (eigen) or [rad] (gamma_window), shape (k,).
+        margin: [N/m] (eigen), [rad] (gamma_window) or 1 − ρ [-] (floquet), shape (k,).
         stable: shape (k,), bool.
         force: resultant average force [N], shape (k,).
         force_limit: [N].
@@ -131,14 +143,22 @@ class PointModel:
         params: the model parameters.
         process_model: ``"thesis"`` or ``"oriented"``.
         mass_model: ``"isotropic"`` or ``"robot"``.
-        criterion: ``"eigen"`` or ``"gamma_window"``.
+        criterion: ``"eigen"``, ``"floquet"`` or ``"gamma_window"``.
+        helix_angle: cutter helix angle [rad] (``floquet`` only).
+        damping_ratio: ζ of both arm modes (``floquet`` only; SPEC §6).
+
+    The ``floquet`` criterion (models.floquet) uses the robot's Cartesian mass and the oriented
+    instantaneous process stiffness whatever ``process_model`` and ``mass_model`` say; the eigen
+    outputs of the analysis stay those of the chosen models.
     """
 
     def __init__(self, robot: Robot, params: ModelParameters, process_model: str = "thesis",
-                 mass_model: str = "isotropic", criterion: str = "eigen") -> None:
+                 mass_model: str = "isotropic", criterion: str = "eigen",
+                 helix_angle: float = DEFAULT_HELIX_ANGLE, damping_ratio: float | None = None) -> None:
         if criterion not in CRITERIA:
-            raise InputError("criterion", f"{criterion!r} is not one of {', '.join(CRITERIA)}"
-                             " (floquet comes with the dynamic simulation)")
+            raise InputError("criterion", f"{criterion!r} is not one of {', '.join(CRITERIA)}")
+        self.helix_angle = helix_angle
+        self.damping_ratio = damping_ratio
         self.robot = robot
         self.params = params
         self.process_model = process_model
@@ -220,7 +240,24 @@ class PointModel:
         if not feed > 0.0 or not np.isfinite(feed):
             raise InputError("feed", f"must be positive and finite, got {feed}")
         sigma = self.check_pose(np.asarray(q, float))
-        return self._to_analysis(self._evaluate(q, cut, np.array([feed]))[0], feed, sigma)
+        point = self._to_analysis(self._evaluate(q, cut, np.array([feed]))[0], feed, sigma)
+        return self._with_floquet(q, cut, (point,))[0]
+
+    def _with_floquet(self, q, cut: Cut, points: tuple[PointAnalysis, ...]) -> tuple:
+        """Add the Floquet spectral radius to each point (``floquet`` criterion only)."""
+        if self.criterion != "floquet":
+            return points
+        from dataclasses import replace
+
+        from models.dynamics import DEFAULT_DAMPING_RATIO, pose_structure
+        from models.floquet import floquet_margin
+
+        zeta = DEFAULT_DAMPING_RATIO if self.damping_ratio is None else self.damping_ratio
+        structures = [pose_structure(self.robot, self.params, np.asarray(q, float), cut, p.feed,
+                                     zeta) for p in points]
+        rho, _ = floquet_margin(structures, [cut] * len(points), self.params.coefficients,
+                                self.helix_angle)
+        return tuple(replace(p, floquet_radius=float(r)) for p, r in zip(points, rho, strict=True))
 
     def characteristic(self, q: np.ndarray, cut: Cut, feeds: np.ndarray,
                        force_limit: float = 300.0) -> StabilityCharacteristic:
@@ -239,6 +276,7 @@ class PointModel:
         sigma = self.check_pose(np.asarray(q, float))
         points = tuple(self._to_analysis(v, f, sigma)
                        for v, f in zip(self._evaluate(q, cut, feeds), feeds, strict=True))
+        points = self._with_floquet(q, cut, points)
         stable = np.array([p.stable for p in points])
         force = np.array([p.force for p in points])
         under = force <= force_limit
@@ -251,7 +289,8 @@ class PointModel:
             feed_limit = float(feeds[first - 1]) if first > 0 else 0.0
             chat, over = not stable[first], not under[first]
             binding = "both" if chat and over else ("chatter" if chat else "force")
-        margin_name = "gamma_margin" if self.criterion == "gamma_window" else "margin"
+        margin_name = {"gamma_window": "gamma_margin", "floquet": "floquet_margin"}.get(
+            self.criterion, "margin")
         return StabilityCharacteristic(
             feeds=feeds, gamma=np.array([p.gamma for p in points]),
             margin=np.array([getattr(p, margin_name) for p in points]), stable=stable,
