@@ -29,7 +29,7 @@ __all__ = ["build_parser", "main"]
 
 #: Modules that add one subcommand each: ``register(sub)`` adds its parser and sets ``run``.
 #: One module per command keeps this shell thin and the commands apart.
-_COMMAND_MODULES: tuple[str, ...] = ()
+_COMMAND_MODULES: tuple[str, ...] = ("planner.cli_simulate",)
 
 #: The thesis's Case 1 (pose, frame and cut), used by ``cctmill demo``.
 CASE1 = {
