@@ -29,7 +29,8 @@ __all__ = ["build_parser", "main"]
 
 #: Modules that add one subcommand each: ``register(sub)`` adds its parser and sets ``run``.
 #: One module per command keeps this shell thin and the commands apart.
-_COMMAND_MODULES: tuple[str, ...] = ("planner.cli_simulate",)
+_COMMAND_MODULES: tuple[str, ...] = ("planner.cli_export", "planner.cli_plan",
+                                     "planner.cli_robot_sim", "planner.cli_simulate")
 
 #: The thesis's Case 1 (pose, frame and cut), used by ``cctmill demo``.
 CASE1 = {
@@ -237,6 +238,18 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     print(f"== Demo job {job.job.name}: {summary['samples']} samples over "
           f"{summary['path_length_m']:.3f} m, all reachable; engagement "
           + ", ".join(f"{m} {n}" for m, n in summary["engagement"]["modes"].items()) + "\n")
+    from planner.plan import plan_prepared, write_plan_outputs
+
+    plans = {m: plan_prepared(prep, m) for m in ("thesis", "optimize")}
+    res = plans["optimize"]
+    plan_files = write_plan_outputs(res, out)
+    written += [p for p in plan_files.values() if isinstance(p, Path)]
+    ev = res.evaluation
+    thesis_time = plans["thesis"].cycle_time
+    print(f"== Plan of the demo job (optimize): cycle {res.cycle_time:.1f} s vs thesis baseline "
+          f"{thesis_time:.1f} s ({100 * (1 - res.cycle_time / thesis_time):.1f} % shorter); "
+          f"{len(res.section_rows)} sections; worst force {ev.force.max():.0f} N, worst "
+          f"deflection {ev.deflection_norm.max() * 1e3:.3f} mm\n")
     print("wrote:")
     for w in written:
         print(f"  {w}")

@@ -38,8 +38,8 @@ __all__ = [
     "optimize_sections",
 ]
 
-#: Scaled feeds of neighbouring cells closer than this are one section [-] (IPOPT's interior
-#: point leaves ℓ1-zero differences at ~1e-9; real feed steps are ≥ 1e-3 of feed_max).
+#: Neighbouring cells whose feeds differ by less than this fraction of feed_max are one section
+#: [-] (IPOPT's interior point leaves ℓ1-zero differences at ~1e-9; real steps are ≥ 1e-3).
 MERGE_TOL = 1e-4
 #: IPOPT's convergence tolerance on the scaled problem [-].
 IPOPT_TOL = 1e-9
@@ -135,7 +135,8 @@ def optimize_sections(runs: list[tuple[int, int, int]], ds: np.ndarray, ceiling:
     x = ca.SX.sym("x", nc)
     t = ca.SX.sym("t", ne)
     time_ref = total / f_ref
-    w = change_cost / time_ref
+    # the price is per change of feed_max, whatever the scale f_ref of the variables
+    w = change_cost / time_ref * f_ref / feed_max
     # Zero-length cells (duplicate samples) weigh nothing; keep them strictly convex.
     weight = np.maximum(length / total, 1e-12)
     obj = ca.sum1(ca.DM(weight) / x) + (w * ca.sum1(t) if ne else 0)
@@ -182,13 +183,15 @@ def optimize_sections(runs: list[tuple[int, int, int]], ds: np.ndarray, ceiling:
                               f"(samples {cells[worst][0]}..{cells[worst][1] - 1}); try "
                               "--method thesis, or report this job", section=worst)
     xs = np.clip(xs, lbx[:nc], ubx[:nc])
-    sections = _merge(groups, xs, cap, f_ref, ceiling, ceiling_binding, feed_change_max)
+    sections = _merge(groups, xs * (f_ref / feed_max), feed_max, ceiling, ceiling_binding,
+                      feed_change_max)
     return sections, result
 
 
-def _merge(groups: list[list[tuple[int, int]]], xs: np.ndarray, cap: np.ndarray, f_ref: float,
+def _merge(groups: list[list[tuple[int, int]]], xs: np.ndarray, f_ref: float,
            ceiling: np.ndarray, binding: np.ndarray,
            feed_change_max: float | None) -> list[Section]:
+    """Merge neighbouring cells of equal feed (``xs`` scaled by ``f_ref`` = feed_max)."""
     out: list[Section] = []
     k = 0
     for g in groups:

@@ -121,6 +121,21 @@ def test_average_force_equals_tooth_average(mode: str, ratio: float, feed: float
     )
 
 
+@pytest.mark.parametrize("mode", MODES)
+@pytest.mark.parametrize("ratio", ENGAGEMENTS)
+def test_average_torque_equals_tooth_average_of_tangential_force(mode: str, ratio: float) -> None:
+    """T̄ = (N/2π) ∫ R F_t dφ: closed form against Gauss-Legendre of the per-edge F_t."""
+    a_e, c = ratio * RADIUS, feed_c(4e-3)
+    phi_st, phi_ex = (float(angle) for angle in immersion_angles(a_e, RADIUS, mode))
+    nodes, weights = np.polynomial.legendre.leggauss(QUADRATURE_NODES)
+    phi = 0.5 * (phi_ex - phi_st) * nodes + 0.5 * (phi_ex + phi_st)
+    f_t = num(cutting.edge_forces(phi, c * np.sin(phi), A_P, COEFFS)[0]).ravel()
+    expected = FLUTES / (2 * math.pi) * RADIUS * 0.5 * (phi_ex - phi_st) * f_t @ weights
+    got = float(cutting.average_torque(c, a_e, A_P, mode, FLUTES, RADIUS, COEFFS))
+    assert got == pytest.approx(expected, rel=QUADRATURE_RTOL)
+    assert got > 0.0
+
+
 def test_instantaneous_force_directions() -> None:
     """F = −F_t t − F_r n + F_a Y_o with n, t of SPEC §4, checked at φ = 0 and φ = π/2."""
     h, b = 1e-4, 2e-3
