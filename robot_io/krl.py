@@ -631,6 +631,13 @@ def render_krl(spec: KrlProgramSpec, sections: Sequence[KrlSection],
 
 
 # --------------------------------------------------------------------------- writing
+def _file_mode() -> int:
+    """0666 less the process umask (what ``open()`` would give a new file)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
 def _write_all(folder: Path, files: dict[str, bytes]) -> list[Path]:
     """Write every file to a temporary beside its target, then move them all into place."""
     for fname in files:
@@ -640,10 +647,12 @@ def _write_all(folder: Path, files: dict[str, bytes]) -> list[Path]:
                            "choose another output folder")
     folder.mkdir(parents=True, exist_ok=True)
     temps: list[tuple[Path, Path]] = []
+    mode = _file_mode()
     try:
         for fname, data in files.items():
             fd, tmp = tempfile.mkstemp(prefix=f".{fname}.", suffix=".tmp", dir=folder)
             temps.append((Path(tmp), folder / fname))
+            os.chmod(tmp, mode)            # mkstemp makes 0600; give the file the usual mode
             with os.fdopen(fd, "wb") as fh:
                 fh.write(data)
                 fh.flush()

@@ -1,0 +1,329 @@
+"""A plan → KUKA KRL: the planner's samples and sections as the KRL writer's plain moves.
+
+:func:`plan_to_krl` turns a plan (``planner.plan_file``) into :mod:`robot_io.krl`'s types;
+:func:`export_plan` also writes the files (atomically, all or nothing). What is emitted:
+
+* the BCO run to the first sample's joint angles (``q_rad[0]``), as a joint-space PTP;
+* per plan section (in order; KRL numbers them 1, 2, … in the fold titles and feed names): its
+  feed as ``$VEL.CP`` (``feed_mm_s`` / 1000, rounded **down** to :data:`FEED_RESOLUTION_M_S` so
+  the ``.dat`` literal stays short and the feed never exceeds the plan's), then one LIN to every
+  sample of the section — the first sample included, so the first LIN after the BCO PTP goes to
+  where the PTP already is (a null move that fixes the Cartesian start);
+* a run of samples of one arc move inside one section (``arc`` true, same ``move``) becomes CIRC
+  moves when its points lie on one circle to :data:`CIRC_FIT_TOL` and the tool axis stays within
+  :data:`CIRC_AXIS_TOL_DEG` (helices, 5-axis arcs and compensated paths do not, and stay LINs —
+  the samples already are chords within the job's chord tolerance). Inside a CIRC the controller
+  interpolates the orientation from start to end, so the rotation about the tool axis at the
+  absorbed samples is the controller's, not the plan's:
+  pieces of at most :data:`CIRC_MAX_SWEEP_DEG`, the auxiliary point the middle sample, the end the
+  last; pieces shorter than :data:`CIRC_MIN_SWEEP_DEG` stay LINs;
+* rapid sections as LIN at the plan's feed for them (or :data:`RAPID_FEED_M_S` when it has none):
+  a Cartesian PTP would need the status and turn bits, which the plan does not carry;
+* ``--compensate-deflection``: every position minus the predicted static deflection
+  ``deflection_wp_m`` (mirror compensation, SPEC §7), orientations unchanged; the program's comment
+  header says so. Air and rapid samples without a prediction (NaN) are not moved.
+
+Plans whose solve did not converge (``solver.success`` false) are refused: an unconverged
+optimisation never reaches the controller.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from models.errors import CctmillError
+from planner.plan_file import KINDS, Plan, load_plan
+from robot_io.krl import (
+    CONTROLLERS,
+    KrlFrame,
+    KrlMove,
+    KrlProgramSpec,
+    KrlSection,
+    render_krl,
+    sanitize_identifier,
+    write_krl,
+)
+from robot_io.krl_reader import circle_through
+
+__all__ = [
+    "CIRC_AXIS_TOL_DEG",
+    "CIRC_FIT_TOL",
+    "CIRC_MAX_SWEEP_DEG",
+    "CIRC_MIN_SWEEP_DEG",
+    "ExportError",
+    "FEED_RESOLUTION_M_S",
+    "KrlProgram",
+    "RAPID_FEED_M_S",
+    "export_plan",
+    "krl_summary",
+    "plan_to_krl",
+]
+
+#: Feeds are written to this resolution [m/s] (1 µm/s = 0.001 mm/s … 1 nm/s here: 1e-9), rounded
+#: down; a KRL REAL (32-bit) holds about 7 significant digits, i.e. ~1e-10 m/s at 2 mm/s.
+FEED_RESOLUTION_M_S = 1e-9
+#: Path speed of rapid sections without a planned feed [m/s] (the KUKA posts' default $VEL.CP).
+RAPID_FEED_M_S = 0.2
+#: Samples of an arc run must lie this close to the fitted circle [m] to become a CIRC.
+CIRC_FIT_TOL = 1e-6
+#: Largest sweep of one CIRC [deg]; longer arcs are cut into pieces.
+CIRC_MAX_SWEEP_DEG = 180.0
+#: The tool axis must stay within this of its start along an arc run [deg] for a CIRC (the
+#: controller interpolates the orientation between the CIRC's start and end only).
+CIRC_AXIS_TOL_DEG = 0.1
+#: Smallest sweep of a CIRC [deg]; below it the arc stays LINs (a CIRC over a tiny angle is
+#: nearly collinear and its circle is ill-defined after rounding to 0.1 µm).
+CIRC_MIN_SWEEP_DEG = 1.0
+
+_MM = 1e3
+
+
+class ExportError(CctmillError):
+    """A plan cannot be exported as it is (the message says why and what to do)."""
+
+
+@dataclass(frozen=True)
+class KrlProgram:
+    """A plan as the KRL writer's input.
+
+    Attributes:
+        spec: the program settings.
+        sections: one per plan section, in order.
+        moves: the motions.
+        notes: comment lines for every ``.src`` (compensation).
+        sample_of_move: for each move, the plan sample its target is (``-1``: none).
+    """
+
+    spec: KrlProgramSpec
+    sections: tuple[KrlSection, ...]
+    moves: tuple[KrlMove, ...]
+    notes: tuple[str, ...]
+    sample_of_move: tuple[int, ...]
+
+
+def _feed_m_s(feed_mm_s: Any, kind: str) -> float:
+    v = math.nan if feed_mm_s is None else float(feed_mm_s) / _MM
+    if kind == "rapid" and not (math.isfinite(v) and v > 0):
+        return RAPID_FEED_M_S
+    if not math.isfinite(v):
+        return v             # the writer refuses it with the section's number
+    q = v / FEED_RESOLUTION_M_S
+    k = round(q) if abs(q - round(q)) < 1e-6 else math.floor(q)
+    return k * FEED_RESOLUTION_M_S if k > 0 else v
+
+
+def _frame(d: dict[str, Any] | None, which: str) -> KrlFrame:
+    if not isinstance(d, dict):
+        raise ExportError(f"the plan's {which}_frame is missing; plan the job again")
+    try:
+        return KrlFrame(tuple(float(x) for x in d["xyz_mm"]),     # type: ignore[arg-type]
+                        tuple(float(x) for x in d["abc_deg"]))    # type: ignore[arg-type]
+    except (KeyError, TypeError, ValueError) as e:
+        raise ExportError(f"the plan's {which}_frame needs xyz_mm and abc_deg ({e})") from e
+
+
+def _tcp_x(abc_deg: np.ndarray) -> np.ndarray:
+    """TCP +x axes (the tool axis, SPEC §1) of KUKA A, B, C rows [deg], shape (n, 3)."""
+    a, b = np.radians(abc_deg[:, 0]), np.radians(abc_deg[:, 1])
+    return np.column_stack([np.cos(a) * np.cos(b), np.sin(a) * np.cos(b), -np.sin(b)])
+
+
+def _arc_moves(p: np.ndarray, abc: np.ndarray, start: int,
+               stop: int) -> list[tuple[int, int]] | None:
+    """Moves ``(aux, end)`` (sample indices; ``aux == -1`` for a LIN) along the arc run whose
+    points are ``p[start..stop]`` (``start`` the sample before the run), or ``None`` when the
+    points are not on one circle or the tool axis turns along them."""
+    n = stop - start
+    if n < 2:
+        return None
+    x = _tcp_x(abc[start:stop + 1])
+    if np.degrees(np.arccos(np.clip(x @ x[0], -1.0, 1.0))).max() > CIRC_AXIS_TOL_DEG:
+        return None
+    idx = (start, start + max(1, n // 3), start + max(2, (2 * n) // 3))
+    try:
+        centre, normal = circle_through(p[idx[0]], p[idx[1]], p[idx[2]])
+    except ValueError:
+        return None
+    rel = p[start:stop + 1] - centre
+    in_plane = rel - np.outer(rel @ normal, normal)
+    radius = float(np.linalg.norm(in_plane[0]))
+    if (np.abs(rel @ normal).max() > CIRC_FIT_TOL
+            or np.abs(np.linalg.norm(in_plane, axis=1) - radius).max() > CIRC_FIT_TOL):
+        return None
+    u = in_plane[0] / radius
+    theta = np.unwrap(np.arctan2(in_plane @ np.cross(normal, u), in_plane @ u))
+    if np.any(np.diff(theta) <= 0):      # not monotonic about the normal: not one arc
+        return None
+    out: list[tuple[int, int]] = []
+    max_sweep, min_sweep = math.radians(CIRC_MAX_SWEEP_DEG), math.radians(CIRC_MIN_SWEEP_DEG)
+    a = 0
+    while a < n:
+        b = a + 1
+        while b + 1 <= n and theta[b + 1] - theta[a] <= max_sweep:
+            b += 1
+        if b - a >= 2 and theta[b] - theta[a] >= min_sweep:
+            out.append((start + (a + b) // 2, start + b))
+            a = b
+        else:
+            out.append((-1, start + a + 1))
+            a += 1
+    return out
+
+
+def plan_to_krl(plan: Plan | str | os.PathLike, name: str | None = None,
+                controller: str = "krc4", compensate: bool = False,
+                override_hook: str = "none", base_index: int | None = None,
+                tool_index: int | None = None, apo_cdis_mm: float = 0.1,
+                advance: int = 3) -> KrlProgram:
+    """The plan as KRL writer input (see the module docstring).
+
+    Args:
+        plan: a loaded plan, or the path of ``plan.json`` or its folder.
+        name: program name (a KRL module name); default: the job name made into one.
+        controller: ``"krc2"`` or ``"krc4"``.
+        compensate: mirror-compensate the predicted static deflection.
+        override_hook: ``"none"``, ``"kvp"`` or ``"rsi"`` (see ``robot_io.krl``).
+        base_index: write ``$BASE = BASE_DATA[n]`` instead of the plan's frame literal.
+        tool_index: write ``$TOOL = TOOL_DATA[n]`` instead of the plan's frame literal.
+        apo_cdis_mm: approximation distance ``$APO.CDIS`` [mm].
+        advance: ``$ADVANCE``.
+
+    Raises:
+        ExportError: the plan is unconverged or inconsistent; ``robot_io.krl.KrlError`` for what
+            KRL cannot hold.
+    """
+    if not isinstance(plan, Plan):
+        plan = load_plan(plan)
+    data, smp = plan.data, plan.samples
+    solver = data.get("solver") or {}
+    if solver.get("success") is False:
+        raise ExportError(f"{plan.path}: the plan's solve did not converge (status "
+                          f"{solver.get('status')!r}); re-plan the job (e.g. --method thesis) — "
+                          "an unconverged plan is never exported")
+    n = int(smp["s_m"].shape[0])
+    pos = np.asarray(smp["position_wp_m"], float).copy()
+    abc = np.asarray(smp["abc_wp_deg"], float)
+    kinds = np.asarray(smp["kind"])
+    notes: list[str] = []
+    if compensate:
+        d = np.asarray(smp["deflection_wp_m"], float)
+        bad = ~np.all(np.isfinite(d), axis=1)
+        cut_bad = np.flatnonzero(bad & (kinds == KINDS.index("cut")))
+        if cut_bad.size:
+            raise ExportError(f"{plan.path}: no predicted deflection at cut sample "
+                              f"{int(cut_bad[0])}; export without --compensate-deflection or "
+                              "re-plan")
+        pos -= np.where(bad[:, None], 0.0, d)
+        dmax = float(np.nanmax(np.linalg.norm(np.where(bad[:, None], 0.0, d), axis=1))) if n else 0.0
+        notes.append(f"path pre-compensated: every position minus the predicted static "
+                     f"deflection (mirror, SPEC 7); largest shift {dmax * _MM:.4f} mm")
+    if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(abc))):
+        i = int(np.flatnonzero(~np.all(np.isfinite(np.hstack([pos, abc])), axis=1))[0])
+        raise ExportError(f"{plan.path}: sample {i} has no finite pose; re-plan the job")
+    q0 = np.degrees(np.asarray(smp["q_rad"], float)[0]) if n else np.full(6, np.nan)
+    secs = data["sections"]
+    hook_len = 4 if override_hook != "none" else 0
+    digits = max(3, len(str(len(secs))))
+    limit = 24 - max(2 + digits, 4, hook_len)
+    prog = name if name is not None else sanitize_identifier(str(data.get("job_name") or "job"),
+                                                             max_len=limit)
+    arc = np.asarray(smp["arc"], bool)
+    move_id = np.asarray(smp["move"])
+    pose = np.hstack([pos * _MM, abc])
+    sections: list[KrlSection] = []
+    moves: list[KrlMove] = []
+    sample_of: list[int] = []
+    expect = 0
+    for k, sec in enumerate(secs):
+        a, b = int(sec["sample_start"]), int(sec["sample_stop"])
+        if a != expect or b <= a or b > n:
+            raise ExportError(f"{plan.path}: section {sec.get('index', k)} covers samples "
+                              f"{a}..{b}, expected to start at {expect} and end by {n}; the "
+                              "sections must partition the samples")
+        expect = b
+        kind = str(sec.get("kind", "cut"))
+        where = ""
+        if sec.get("line_start") is not None:
+            where = f"source lines {sec['line_start']}-{sec.get('line_end')}"
+            if sec.get("file"):
+                where += f" of {os.path.basename(str(sec['file']))}"
+        extra = []
+        for key, label, unit in (("margin_N_per_m", "margin", "N/m"), ("force_max_N", "F max", "N"),
+                                 ("deflection_max_mm", "defl max", "mm")):
+            v = sec.get(key)
+            if isinstance(v, (int, float)) and math.isfinite(v):
+                extra.append(f"{label} {v:.4g} {unit}")
+        comment = "; ".join(x for x in (f"plan section {sec.get('index', k)}", where,
+                                        ", ".join(extra)) if x)
+        sections.append(KrlSection(_feed_m_s(sec.get("feed_mm_s"), kind), kind,
+                                   str(sec.get("binding") or ""), comment))
+        i = a
+        while i < b:
+            if arc[i] and i > 0:
+                j = i
+                while j + 1 < b and arc[j + 1] and move_id[j + 1] == move_id[i]:
+                    j += 1
+                pieces = _arc_moves(pos, abc, i - 1, j)
+                if pieces is None:          # not one circle: the whole run as LINs
+                    pieces = [(-1, e) for e in range(i, j + 1)]
+                for aux, end in pieces:
+                    if aux < 0:
+                        moves.append(KrlMove("LIN", tuple(pose[end]), k))
+                    else:
+                        moves.append(KrlMove("CIRC", tuple(pose[end]), k, aux=tuple(pose[aux])))
+                    sample_of.append(end)
+                i = j + 1
+                continue
+            moves.append(KrlMove("LIN", tuple(pose[i]), k))
+            sample_of.append(i)
+            i += 1
+    if expect != n:
+        raise ExportError(f"{plan.path}: the sections end at sample {expect} of {n}")
+    if moves and moves[0].kind == "CIRC":      # cannot happen: the first sample is a LIN target
+        raise ExportError(f"{plan.path}: the path starts with an arc")
+    if moves:
+        last = moves[-1]
+        moves[-1] = KrlMove(last.kind, last.target, last.section, last.aux, approx=False)
+    comments = [f"cctmill KRL export of job {data.get('job_name', '?')} "
+                f"(plan method {data.get('method', '?')}, {len(secs)} sections, "
+                f"{n} samples)",
+                f"plan: {plan.path}",
+                "poses: TCP in $BASE [mm, deg]; $VEL.CP [m/s]; feeds in the .dat, retune there",
+                f"cycle time (planned) {float(data.get('cycle_time_s') or math.nan):.1f} s at "
+                "$OV_PRO 100"]
+    spec = KrlProgramSpec(
+        name=prog, bco_axes_deg=tuple(float(x) for x in q0), controller=controller,
+        base=_frame(data.get("base_frame"), "base") if base_index is None else base_index,
+        tool=_frame(data.get("tool_frame"), "tool") if tool_index is None else tool_index,
+        advance=advance, apo_cdis_mm=apo_cdis_mm, override_hook=override_hook,
+        comments=tuple(comments))
+    return KrlProgram(spec, tuple(sections), tuple(moves), tuple(notes), tuple(sample_of))
+
+
+def export_plan(plan_or_path: Plan | str | os.PathLike, outdir: str | os.PathLike,
+                name: str | None = None, controller: str = "krc4", compensate: bool = False,
+                override_hook: str = "none", **options: Any) -> list[Path]:
+    """Write the plan as a KRL program into ``outdir``; return the files written (main ``.src``
+    and ``.dat`` first, then the pages). ``options`` go to :func:`plan_to_krl` (``base_index``,
+    ``tool_index``, ``apo_cdis_mm``, ``advance``). All or nothing: an error leaves ``outdir``
+    as it was."""
+    if controller not in CONTROLLERS:
+        raise ExportError(f"unknown controller {controller!r}; use one of {', '.join(CONTROLLERS)}")
+    prog = plan_to_krl(plan_or_path, name, controller, compensate, override_hook, **options)
+    return write_krl(prog.spec, prog.sections, prog.moves, outdir, prog.notes)
+
+
+def krl_summary(prog: KrlProgram) -> dict[str, Any]:
+    """Counts for the CLI: sections, moves by kind, pages."""
+    out = render_krl(prog.spec, prog.sections, prog.moves, prog.notes)
+    kinds: dict[str, int] = {}
+    for m in prog.moves:
+        kinds[m.kind] = kinds.get(m.kind, 0) + 1
+    return {"sections": len(prog.sections), "moves": len(prog.moves), "by_kind": kinds,
+            "pages": len(out.pages), "files": list(out.files)}
