@@ -198,7 +198,7 @@ class ModelSection(_Section):
 
     process_model: Literal["thesis", "oriented"] = "thesis"
     mass_model: Literal["isotropic", "robot"] = "isotropic"
-    chatter_criterion: Literal["eigen", "gamma_window"] = "eigen"
+    chatter_criterion: Literal["eigen", "floquet", "gamma_window"] = "eigen"
     gamma_window_deg: Annotated[list[float], Field(min_length=2, max_length=2)] = [-90.0, 90.0]
     process_gain: PosFloat = 1.0
     cct: bool = True
@@ -299,7 +299,8 @@ KEY_DOCS: dict[str, str] = {
     "stock.z_top_mm": "stock top [mm]",
     "model.process_model": "thesis (rank one, default) or oriented (Tlusty)",
     "model.mass_model": "isotropic (stiffness only) or robot (CRBA + spindle)",
-    "model.chatter_criterion": "eigen or gamma_window",
+    "model.chatter_criterion": "eigen, floquet (exact for the time-periodic cut, SPEC §6) or "
+                               "gamma_window",
     "model.gamma_window_deg": "calibrated [γ_lo, γ_hi] for gamma_window [deg]",
     "model.process_gain": "multiplies the process stiffness K_p (calibration)",
     "model.cct": "include the force-dependent CCT stiffness term",

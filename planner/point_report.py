@@ -43,6 +43,7 @@ def analysis_json(a: PointAnalysis, cct: bool) -> dict[str, Any]:
         "stable_eigen": bool(a.stable_eigen),
         "margin_N_per_m": a.margin,
         "gamma_window_margin_deg": float(np.degrees(a.gamma_margin)),
+        "floquet_spectral_radius": a.floquet_radius,
         "stiffness_N_per_m": _list(a.stiffness),
         "compliance_m_per_N": _list(a.compliance),
         "principal_stiffness_N_per_m": _list(a.principal_values),
@@ -76,7 +77,9 @@ def analysis_table(a: PointAnalysis, cct: bool) -> str:
         f"[{a.k_p[1, 0]:.4g}, {a.k_p[1, 1]:.4g}]] N/m",
         "eig(A)           " + ", ".join(
             f"{re:.4g}{im:+.4g}i" if im else f"{re:.4g}" for re, im in a.eig) + " N/m",
-        f"margin           {a.margin:10.4g} N/m  -> {'STABLE' if a.stable else 'UNSTABLE'}",
+        f"margin           {a.margin:10.4g} N/m  -> {'STABLE' if a.stable else 'UNSTABLE'}"
+        + (f" (floquet: rho {a.floquet_radius:.4f}; eigen "
+           f"{'stable' if a.stable_eigen else 'unstable'})" if a.floquet_radius is not None else ""),
         f"deflection       {a.deflection[0] * 1e3:8.4f} {a.deflection[1] * 1e3:8.4f} "
         f"{a.deflection[2] * 1e3:8.4f} mm  (|d| = {np.linalg.norm(a.deflection) * 1e3:.4f} mm)",
         f"TCP (base)       {a.tcp_position[0] * 1e3:9.2f} {a.tcp_position[1] * 1e3:9.2f} "
@@ -98,7 +101,8 @@ def analysis_table(a: PointAnalysis, cct: bool) -> str:
 
 def characteristic_table(ch: StabilityCharacteristic) -> str:
     """One row per feed: feed, |F|, γ, margin, verdict; then the point's feed limit."""
-    unit = "deg" if ch.points and ch.points[0].criterion == "gamma_window" else "N/m"
+    criterion = ch.points[0].criterion if ch.points else "eigen"
+    unit = {"gamma_window": "deg", "floquet": "1-rho"}.get(criterion, "N/m")
     rows = [f"{'feed mm/s':>10} {'|F| N':>8} {'gamma deg':>10} {'margin ' + unit:>14}  verdict"]
     for p, m in zip(ch.points, ch.margin, strict=True):
         mm = np.degrees(m) if unit == "deg" else m
