@@ -244,6 +244,10 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     res = plans["optimize"]
     plan_files = write_plan_outputs(res, out)
     written += [p for p in plan_files.values() if isinstance(p, Path)]
+    from planner.export import export_plan
+
+    krl = export_plan(plan_files["plan"], out / "krl", controller="krc4")   # atomic, all or none
+    written += krl
     ev = res.evaluation
     thesis_time = plans["thesis"].cycle_time
     print(f"== Plan of the demo job (optimize): cycle {res.cycle_time:.1f} s vs thesis baseline "

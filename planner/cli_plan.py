@@ -64,7 +64,11 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     if args.krl:
         from planner.export import export_plan
 
-        written["krl"] = export_plan(written["plan"], out)
+        written["krl"] = export_plan(
+            written["plan"], out, name=args.name, controller=args.controller,
+            compensate=args.compensate_deflection, override_hook=args.override_hook,
+            base_index=args.base_index, tool_index=args.tool_index,
+            apo_cdis_mm=args.apo_cdis_mm, advance=args.advance)
     if args.json:
         doc = json.loads(written["plan"].read_text(encoding="utf-8"))
         doc.pop("sections", None)
@@ -95,6 +99,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "or constant (the safe constant feed)")
     p.add_argument("--safety-factor", type=float, default=None,
                    help="thesis method: f_real = f_max / safety factor (default from the job, 1.1)")
-    p.add_argument("--krl", action="store_true", help="also write the KUKA KRL program")
+    p.add_argument("--krl", action="store_true", help="also write the KUKA KRL program "
+                                                      "(the KRL flags below, as cctmill export)")
+    from planner.cli_export import add_krl_flags
+
+    add_krl_flags(p, with_output=False)
     p.add_argument("--json", action="store_true", help="print the plan summary as JSON")
     p.set_defaults(run=_cmd_plan)

@@ -10,6 +10,7 @@ to 1e-9 m/s).
 
 from __future__ import annotations
 
+import json
 import math
 import re
 from importlib import resources
@@ -342,3 +343,26 @@ def test_cli_export_errors(tmp_path, capsys, argv, match) -> None:
 def test_cli_export_missing_plan(tmp_path, capsys) -> None:
     assert main(["export", str(tmp_path / "nope"), "-o", str(tmp_path / "krl")]) == 2
     assert "cctmill plan" in capsys.readouterr().err
+
+
+def test_cli_plan_krl_flags(tmp_path, capsys) -> None:
+    rc = main(["plan", "--demo", "-o", str(tmp_path), "--json", "--krl", "--name", "DEMO_KRC2",
+               "--controller", "krc2", "--override-hook", "kvp", "--tool-index", "4"])
+    doc = json.loads(capsys.readouterr().out)
+    assert rc == 0
+    assert [Path(p).name for p in doc["written"]["krl"]] == ["DEMO_KRC2.src", "DEMO_KRC2.dat"]
+    assert lint_krl(tmp_path, controller="krc2") == []
+    src = (tmp_path / "DEMO_KRC2.src").read_text(encoding="ascii")
+    assert "$TOOL = TOOL_DATA[4]" in src and "DEMO_KRC2_SEC = 1" in src
+    assert len(read_krl(tmp_path / "DEMO_KRC2.src").moves) > 100
+
+
+def test_demo_writes_the_krl(tmp_path, capsys) -> None:
+    assert main(["demo", "-o", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    krl = tmp_path / "krl"
+    names = sorted(p.name for p in krl.iterdir())
+    assert names == ["bracket_contour.dat", "bracket_contour.src"]      # no temporaries
+    assert str(krl / "bracket_contour.src") in out
+    assert lint_krl(krl, controller="krc4") == []
+    _check_export(tmp_path / "plan.json", [krl / n for n in names[::-1]], "krc4")
