@@ -12,7 +12,8 @@ Policy (SPEC §9):
 - **Envelope.** The override never exceeds 100 % (the planned feed) nor the override at which the
   characteristic's force reaches ``force_max_N``; it never goes under the floor (unless the force
   limit itself is lower). Changes follow a ruckig trajectory: jerk- and acceleration-limited, fast
-  back-off (``backoff_pct_s``) and slow recovery (``recover_pct_s``).
+  back-off (``backoff_pct_s``) and slow recovery (``recover_pct_s``); a stabilising move upwards
+  during an alarm (the characteristic says "faster") is as fast as a back-off.
 - **Alarm** (band over the control limit): move the override in the stabilising direction of the
   characteristic at the current feed, by ``gain_pct`` × the relative excess (at most
   ``max_step_pct``) from the override at the episode's start; an alarm that outlasts ``persist_s``
@@ -230,6 +231,7 @@ class Supervisor:
         self._traj = Trajectory(1)
         self._traj_t0 = 0.0
         self._traj_ok = False
+        self._fast_up = False
         self._pos, self._vel, self._acc = 100.0, 0.0, 0.0
         self._target = 100.0
         self._now: float | None = None
@@ -267,8 +269,9 @@ class Supervisor:
         floor = min(self.cfg.floor_pct, cap)
         return floor, cap
 
-    def _plan_traj(self, now: float, target: float) -> None:
+    def _plan_traj(self, now: float, target: float, fast_up: bool = False) -> None:
         cfg = self.cfg
+        self._fast_up = fast_up
         inp = InputParameter(1)
         inp.current_position = [self._pos]
         inp.current_velocity = [self._vel]
@@ -276,7 +279,7 @@ class Supervisor:
         inp.target_position = [target]
         inp.target_velocity = [0.0]
         inp.target_acceleration = [0.0]
-        inp.max_velocity = [cfg.recover_pct_s]
+        inp.max_velocity = [cfg.backoff_pct_s if fast_up else cfg.recover_pct_s]
         inp.min_velocity = [-cfg.backoff_pct_s]
         inp.max_acceleration = [cfg.accel_pct_s2]
         inp.max_jerk = [cfg.jerk_pct_s3]
@@ -297,8 +300,12 @@ class Supervisor:
 
     def _valid(self, chunk: SignalChunk) -> tuple[bool, str]:
         t, v = chunk.t_s, chunk.values
+        if not (isinstance(t, np.ndarray) and isinstance(v, np.ndarray)):
+            return False, "chunk without sample arrays"
         if t.shape != v.shape or t.ndim != 1:
             return False, "chunk arrays of different shapes"
+        if not (np.issubdtype(t.dtype, np.number) and np.issubdtype(v.dtype, np.number)):
+            return False, f"samples of type {v.dtype}, not numbers"
         if not (np.all(np.isfinite(v)) and np.all(np.isfinite(t))):
             return False, "non-finite samples"
         if np.max(np.abs(v)) > self.plausible_max:
@@ -432,14 +439,16 @@ class Supervisor:
             reason = (f"section {tr.section} (planned {planned:.3g} mm/s, cap {cap:.1f} %); "
                       + reason)
         target = min(max(target, floor), cap)
-        if abs(target - self._target) > TARGET_EPS_PCT:
-            self._plan_traj(now, target)
-        self._advance(now)
+        open_ep = self.episodes[-1] if self.episodes and self.episodes[-1].end_s is None else None
+        fast_up = (open_ep is not None and open_ep.direction > 0 and status in ("alarm", "quiet"))
+        self._advance(now)  # the state now, on the trajectory in force
+        if abs(target - self._target) > TARGET_EPS_PCT or fast_up != self._fast_up:
+            self._plan_traj(now, target, fast_up)
         override = min(max(self._pos, floor), cap)
         if override != self._pos:
             reason += f"; clipped to the envelope [{floor:.1f}, {cap:.1f}] %"
             self._pos, self._vel, self._acc = override, 0.0, 0.0
-            self._plan_traj(now, target)
+            self._plan_traj(now, target, fast_up)
         res = StepResult(status, override, target, band, ucl, alarm, tr.section, tr.s_m, reason,
                          direction)
         changed = status != self._status or prev_section != tr.section

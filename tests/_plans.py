@@ -6,6 +6,7 @@ the feed is stabilising), force rises linearly with feed; ``flat=True`` gives a 
 depend on feed (no stabilising direction, as with the oriented process model).
 
 Named plans:
+    (``rising=True``: margin rises with feed, stable above the boundary.)
     ONE_SECTION: 0.5 m cut at 8 mm/s, stable up to 10 mm/s (so a boundary shift of 1.6 makes 8 mm/s
         chatter and 5 mm/s safe).
     FEED_STEP: 0.012 m at 8 mm/s (1.5 s) then 0.5 m at 4 mm/s (the thesis's feed-step false-alarm test).
@@ -26,17 +27,20 @@ FORCE_MAX_N = 300.0
 
 
 def characteristic(boundary_mm_s: float = 10.0, flat: bool = False, force_per_mm_s: float = 15.0,
-                   force0_N: float = 20.0) -> dict:
+                   force0_N: float = 20.0, rising: bool = False) -> dict:
     margin = (np.full_like(FEEDS_MM_S, 2e4) if flat
               else 1e5 * (boundary_mm_s - FEEDS_MM_S) / boundary_mm_s)
+    if rising:
+        margin = -margin
     force = force0_N + force_per_mm_s * FEEDS_MM_S
     return {"sample": 0, "feeds_mm_s": FEEDS_MM_S.tolist(), "margin_N_per_m": margin.tolist(),
             "gamma_deg": np.linspace(10, 40, FEEDS_MM_S.size).tolist(), "force_N": force.tolist(),
             "stable": (margin >= 0).tolist()}
 
 
-def make_plan(folder: Path, sections: list[dict], step_m: float = 0.002) -> Path:
-    """sections: dicts with length_m, feed_mm_s and optionally boundary_mm_s, flat, kind,
+def make_plan(folder: Path, sections: list[dict], step_m: float = 0.002,
+              force_max_N: float = FORCE_MAX_N) -> Path:
+    """sections: dicts with length_m, feed_mm_s and optionally boundary_mm_s, flat, rising, kind,
     force_per_mm_s."""
     secs = []
     s0 = 0.0
@@ -46,7 +50,8 @@ def make_plan(folder: Path, sections: list[dict], step_m: float = 0.002) -> Path
         starts.append((s0, n))
         kind = spec.get("kind", "cut")
         ch = (characteristic(spec.get("boundary_mm_s", 10.0), spec.get("flat", False),
-                             spec.get("force_per_mm_s", 15.0)) if kind == "cut" else None)
+                             spec.get("force_per_mm_s", 15.0), rising=spec.get("rising", False))
+              if kind == "cut" else None)
         secs.append({
             "index": i, "kind": kind, "s_start_m": s0, "s_end_m": s0 + spec["length_m"],
             "feed_mm_s": spec["feed_mm_s"], "binding": "chatter", "margin_N_per_m": 1e4,
@@ -83,7 +88,7 @@ def make_plan(folder: Path, sections: list[dict], step_m: float = 0.002) -> Path
         "tool_frame": {"xyz_mm": [0, 0, 0], "abc_deg": [0, 0, 0]},
         "spindle_rpm": 1000.0, "flutes": 2, "tool_diameter_mm": 25.4, "material": "al6061",
         "model": {"process_model": "thesis", "mass_model": "robot", "criterion": "eigen", "cct": True},
-        "constraints": {"force_max_N": FORCE_MAX_N, "feed_min_mm_s": 0.5, "feed_max_mm_s": 20.0},
+        "constraints": {"force_max_N": force_max_N, "feed_min_mm_s": 0.5, "feed_max_mm_s": 20.0},
         "sections": secs, "cycle_time_s": float(samples["time_s"][-1]),
         "process_time_s": float(samples["time_s"][-1]),
         "solver": {"status": "synthetic", "success": True, "iterations": 0, "build_time_s": 0.0,

@@ -1,0 +1,268 @@
+"""Supervisor policy: stabilising direction from the characteristic, safety envelope (planned feed,
+force limit, floor, rates), hold/safe on missing or garbage signal, never raising, decision log.
+
+Signals are synthetic chunks fed on a virtual clock (no sockets here; see test_supervise_e2e.py)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from _plans import FEED_STEP, ONE_SECTION, make_plan
+
+from planner.detector import Detector, select_level
+from planner.event_log import EventLog
+from planner.plan_file import load_plan
+from planner.simcut import CutScenario, SimulatedCut
+from planner.supervise_loop import VirtualClock, run_loop
+from planner.supervisor import STATUSES, Supervisor, SupervisorConfig
+from robot_io.robot_link import LinkStats, LinkStatus
+from robot_io.signal_source import SignalChunk
+
+FS = 10_000.0
+DT = 0.004
+F_C = math.sqrt(9.0 * 13.4)
+
+
+def _plan(tmp_path, sections, **kw):
+    return load_plan(make_plan(tmp_path / "plan", sections, **kw))
+
+
+def _stable(rng, t):
+    return 100 + 30 * np.sin(2 * np.pi * 33.3 * t) + 0.7 * np.sin(2 * np.pi * F_C * t) + rng.normal(
+        0, 0.3, t.size)
+
+
+@pytest.fixture(scope="module")
+def sigma():
+    rng = np.random.default_rng(1)
+    t = np.arange(30_000) / FS
+    det = Detector(FS, select_level(FS, F_C, 33.3))
+    return det.learn(_stable(rng, t))
+
+
+class Feeder:
+    """Feeds a supervisor chunks of 4 ms of synthetic signal on a virtual clock."""
+
+    def __init__(self, sup, rng):
+        self.sup, self.rng, self.k, self.now = sup, rng, 0, 0.0
+        self.results = []
+
+    def run(self, duration_s, chatter_N=0.0, signal=True):
+        n = int(DT * FS)
+        for _ in range(int(round(duration_s / DT))):
+            t = (self.k + np.arange(n)) / FS
+            self.k += n
+            y = _stable(self.rng, t) + chatter_N * np.sin(2 * np.pi * F_C * t)
+            chunk = SignalChunk(t, y) if signal else SignalChunk(np.zeros(0), np.zeros(0))
+            self.results.append(self.sup.step(self.now, chunk))
+            self.now += DT
+        return self.results[-1]
+
+
+def test_chatter_lowers_the_feed_when_margin_falls_with_feed(tmp_path, rng, sigma):
+    sup = Supervisor(_plan(tmp_path, ONE_SECTION), FS, sigma=sigma)
+    f = Feeder(sup, rng)
+    assert f.run(0.6).status == "ok" and f.results[-1].override == 100.0
+    f.run(0.3, chatter_N=8.0)
+    alarms = [r for r in f.results if r.alarm]
+    assert alarms and alarms[0].direction == -1 and "lowering" in alarms[0].reason
+    assert f.results[-1].override < 90.0
+    assert sup.episodes and sup.episodes[0].direction == -1
+
+
+def test_raises_when_margin_rises_with_feed(tmp_path, rng, sigma):
+    # margin rising with feed: stable above 10 mm/s; a signal loss brings the override down to the
+    # safe 20 %, and chatter during the recovery must push the feed *up*, fast
+    plan = _plan(tmp_path, [{"length_m": 0.2, "feed_mm_s": 8.0, "rising": True}])
+    sup = Supervisor(plan, FS, sigma=sigma)
+    f = Feeder(sup, rng)
+    f.run(0.5)
+    f.run(0.6, signal=False)
+    f.run(0.6)
+    assert f.results[-1].status == "recover" and f.results[-1].override < 40.0
+    f.run(0.3, chatter_N=8.0)
+    i = next(i for i, r in enumerate(f.results) if r.alarm)
+    first = f.results[i]
+    assert first.direction == 1 and "raising" in first.reason
+    later = f.results[i + 15]  # 60 ms on
+    rise = later.override - first.override
+    assert rise > 2 * 0.06 * sup.cfg.recover_pct_s  # faster than a recovery: a stabilising move
+
+
+def test_no_stabilising_direction_backs_off_towards_the_floor(tmp_path, rng, sigma):
+    sup = Supervisor(_plan(tmp_path, [{"length_m": 0.5, "feed_mm_s": 8.0, "flat": True}]), FS,
+                     sigma=sigma)
+    f = Feeder(sup, rng)
+    f.run(0.5)
+    f.run(1.5, chatter_N=8.0)
+    alarms = [r for r in f.results if r.alarm]
+    assert alarms and all(r.direction == 0 for r in alarms)
+    assert "no stabilising feed direction" in alarms[0].reason
+    assert sup.counts["no_direction"] > 0
+    assert f.results[-1].override == pytest.approx(sup.cfg.floor_pct)  # the floor holds
+    assert min(r.override for r in f.results) >= sup.cfg.floor_pct - 1e-9
+
+
+def test_force_limit_caps_the_override(tmp_path, rng, sigma):
+    # force 20 + 15 f [N]: 140 N at the planned 8 mm/s; a 100 N limit allows 5.33 mm/s = 66.7 %
+    sup = Supervisor(_plan(tmp_path, ONE_SECTION, force_max_N=100.0), FS, sigma=sigma)
+    f = Feeder(sup, rng)
+    f.run(1.0)
+    cap = 100.0 * (100.0 - 20.0) / 15.0 / 8.0
+    assert max(r.override for r in f.results) <= cap + 1e-9
+    assert f.results[-1].override == pytest.approx(cap, abs=1e-6)
+
+
+def test_signal_lost_holds_then_goes_to_the_safe_override(tmp_path, rng, sigma):
+    cfg = SupervisorConfig(safe_pct=30.0)
+    sup = Supervisor(_plan(tmp_path, ONE_SECTION), FS, sigma=sigma, config=cfg)
+    f = Feeder(sup, rng)
+    f.run(0.5)
+    before = f.results[-1].override
+    n0 = len(f.results)
+    f.run(1.0, signal=False)
+    seq = [r.status for r in f.results[n0:]]
+    holds = [r for r in f.results[n0:] if r.status == "hold"]
+    assert holds and all(r.override == before for r in holds)
+    assert seq[0] == "ok" and seq.index("hold") < seq.index("safe")
+    assert seq.index("hold") * DT == pytest.approx(cfg.hold_after_s, abs=2 * DT)
+    assert seq.index("safe") * DT == pytest.approx(cfg.signal_timeout_s, abs=2 * DT)
+    assert f.results[-1].status == "safe" and f.results[-1].override == pytest.approx(30.0)
+    # signal back: the band filter warms up (override held), then the override recovers slowly
+    f.run(0.2)
+    assert f.results[-1].status == "warmup" and f.results[-1].override == pytest.approx(30.0)
+    f.run(1.0)
+    assert f.results[-1].status == "recover"
+    assert 30.0 < f.results[-1].override < 30.0 + 0.85 * cfg.recover_pct_s
+
+
+GARBAGE = [
+    SignalChunk(np.zeros(0), np.zeros(0)),
+    SignalChunk(np.arange(40) / FS, np.full(40, np.nan)),
+    SignalChunk(np.arange(40) / FS, np.full(40, np.inf)),
+    SignalChunk(np.arange(40) / FS, np.full(40, 1e30)),
+    SignalChunk(np.arange(40) / FS, np.full(40, 5.0)),           # stuck sensor? (under 64: allowed)
+    SignalChunk(np.arange(100) / FS, np.full(100, 5.0)),         # stuck sensor
+    SignalChunk(np.arange(40)[::-1] / FS, np.ones(40)),         # time running backwards
+    SignalChunk(np.arange(40) / FS, np.ones(39)),                # shapes differ
+    SignalChunk(np.zeros((2, 3)), np.zeros((2, 3))),             # 2-D
+    SignalChunk(np.array([np.nan]), np.array([1.0])),
+    SignalChunk(np.array(["a", "b"]), np.array(["x", "y"])),     # not numbers
+    None,
+    "not a chunk",
+]
+
+
+def test_never_raises_and_envelope_holds_under_random_garbage(tmp_path, rng, sigma):
+    sup = Supervisor(_plan(tmp_path, FEED_STEP, force_max_N=110.0), FS, sigma=sigma)
+    now, k = 0.0, 0
+    cap = {0: 100.0 * (110.0 - 20.0) / 15.0 / 8.0, 1: 100.0}
+    prev = None
+    for i in range(3000):
+        r = rng.random()
+        if r < 0.15:
+            chunk = GARBAGE[int(rng.integers(len(GARBAGE)))]
+        else:
+            n = int(rng.integers(1, 120))
+            t = (k + np.arange(n)) / FS
+            k += n
+            amp = 10.0 if (i // 300) % 2 else 0.0
+            chunk = SignalChunk(t, _stable(rng, t) + amp * np.sin(2 * np.pi * F_C * t))
+        res = sup.step(now, chunk)  # type: ignore[arg-type]
+        assert res.status in STATUSES and res.status != "error", res.reason
+        assert math.isfinite(res.override)
+        assert sup.cfg.floor_pct - 1e-9 <= res.override <= cap[res.section] + 1e-9
+        assert res.override <= 100.0
+        if prev is not None and prev.section == res.section:
+            rate = (res.override - prev.override) / DT
+            assert -sup.cfg.backoff_pct_s * 1.001 <= rate <= sup.cfg.backoff_pct_s * 1.001
+        prev = res
+        now += DT
+    assert sup.counts["implausible_chunks"] > 0
+
+
+def test_override_trajectory_is_rate_and_jerk_limited(tmp_path, rng, sigma):
+    sup = Supervisor(_plan(tmp_path, ONE_SECTION), FS, sigma=sigma)
+    f = Feeder(sup, rng)
+    f.run(0.5)
+    f.run(0.3, chatter_N=8.0)
+    f.run(2.0)
+    ov = np.array([r.override for r in f.results])
+    v = np.diff(ov) / DT
+    a = np.diff(v) / DT
+    cfg = sup.cfg
+    assert v.min() >= -cfg.backoff_pct_s * 1.001 and v.max() <= cfg.recover_pct_s * 1.001
+    assert np.abs(a).max() <= cfg.accel_pct_s2 * 1.01
+    assert v.min() < -0.3 * cfg.backoff_pct_s  # it did back off fast ...
+    assert 0.5 * cfg.recover_pct_s < v.max()   # ... and recovered slowly
+
+
+def test_internal_failure_returns_error_and_holds(tmp_path, rng, sigma, monkeypatch):
+    sup = Supervisor(_plan(tmp_path, ONE_SECTION), FS, sigma=sigma)
+    f = Feeder(sup, rng)
+    f.run(0.5)
+    before = f.results[-1].override
+
+    def boom(*a, **k):
+        raise RuntimeError("detector exploded")
+
+    monkeypatch.setattr(sup.detector, "update", boom)
+    res = f.run(0.1)
+    assert res.status == "error" and "detector exploded" in res.reason and res.override == before
+    assert sup.counts["errors"] == 25
+
+
+def test_sigma_learned_from_the_stable_window(tmp_path, rng, sigma):
+    sup = Supervisor(_plan(tmp_path, ONE_SECTION), FS, sigma=None, learn_s=1.5)
+    f = Feeder(sup, rng)
+    f.run(1.4)
+    assert f.results[-1].status == "learning" and sup.detector.sigma is None
+    f.run(0.3)
+    assert sup.detector.sigma == pytest.approx(sigma, rel=0.15)
+    assert any("learned" in r.reason for r in f.results)
+
+
+class _Link:
+    def __init__(self):
+        self.v = 100.0
+
+    def set_override(self, p):
+        self.v = float(p)
+        return LinkStatus(True, "ok", int(p))
+
+    def read_override(self):
+        return self.v
+
+    stats = LinkStats()
+    connected = True
+
+    def close(self):
+        pass
+
+
+def test_closed_loop_on_the_simulated_cut_with_a_decision_log(tmp_path):
+    plan = _plan(tmp_path, ONE_SECTION)
+    path = tmp_path / "events.jsonl"
+    log = EventLog(path)
+    clk = VirtualClock()
+    link = _Link()
+    cut = SimulatedCut(plan, link.read_override, FS, CutScenario(onset_s=1.5), clock=clk)
+    sup = Supervisor(plan, FS, log=log, learn_s=1.0)
+    rep = run_loop(sup, cut, link, 4.0, clock=clk, sleep=clk.sleep)
+    log.close()
+    tr = cut.truth.arrays()
+    assert sup.episodes and sup.episodes[0].direction == -1
+    ep = sup.episodes[0]
+    assert ep.end_s is not None
+    after = tr["chatter_N"][(tr["t_s"] > ep.start_s) & (tr["t_s"] < ep.end_s + 0.5)]
+    assert tr["chatter_N"].max() > 5.0 and after.min() < 0.5  # chatter came and went
+    assert rep.last.override < 100.0 and rep.status_counts.get("error", 0) == 0
+    lines = path.read_text(encoding="utf-8").splitlines()
+    assert len(lines) > 20
+    recs = [json.loads(x) for x in lines]
+    for r in recs:
+        assert {"t_s", "section", "band", "ucl", "override", "reason", "status"} <= set(r)
+    assert any(r["alarm"] for r in recs) and any("lowering" in r["reason"] for r in recs)
