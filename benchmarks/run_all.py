@@ -3,7 +3,9 @@
 - ``throughput.py``: poses per second of the point model (CCT stiffness + γ + margin), CasADi VM
   and compiled C against a per-pose numpy/pinocchio baseline measured in the same run;
 - ``thesis_figures.py``: each published figure the physics core can recompute, and whether this
-  model agrees.
+  model agrees;
+- ``link_latency.py``: robot link latency over loopback (KVP write round trip, RSI reply time, worst
+  case and p99, against a bare echo and the 4 ms / 12 ms controller cycle).
 
 The summary table is printed; ``out/benchmarks.md`` holds it followed by both full tables (the
 README's "Validation against the thesis" and "Performance" sections are pasted from there). The
@@ -25,6 +27,7 @@ for _p in (str(REPO), str(HERE)):
     if _p not in sys.path:
         sys.path.insert(0, _p)
 
+import link_latency  # noqa: E402
 import thesis_figures  # noqa: E402
 import throughput  # noqa: E402
 import toolpath_speed  # noqa: E402
@@ -84,7 +87,11 @@ def main(argv: list[str] | None = None) -> str:
         speed_md = toolpath_speed.markdown(speed)
     except ImportError as e:
         speed_md = f"skipped: {e}"
-    table = summary(report, figures)
+    log("robot link latency ...")
+    links = link_latency.run()
+    head, sep, machine = summary(report, figures).partition("\n\nMachine:")
+    table = head + "".join("\n| " + " | ".join(row) + " |" for row in link_latency.summary_rows(links)) \
+        + sep + machine
     doc = "\n\n".join([
         "# cctmill benchmarks",
         "## Summary", table,
@@ -92,6 +99,7 @@ def main(argv: list[str] | None = None) -> str:
         thesis_figures.markdown(figures),
         "## Performance (benchmarks/throughput.py)", throughput.format_table(report),
         "## Toolpath import and path kinematics (benchmarks/toolpath_speed.py)", speed_md,
+        "## Robot link latency (benchmarks/link_latency.py)", link_latency.markdown(links),
         f"_Total wall time {time.perf_counter() - t0:.0f} s._",
     ]) + "\n"
     write_text_atomic(args.out, doc)

@@ -192,8 +192,9 @@ class RsiSimController:
         return build_rob(ipoc, (x + s_mm, y, z, a, b, c), _AXES_DEG, delay, self.path.override_percent,
                          self.type_attr, self.dat)
 
-    def _classify(self, data: bytes, ipoc: int, t_send: float) -> bool:
-        """Handle one received datagram; ``True`` when it is the valid reply of this cycle."""
+    def _classify(self, data: bytes, ipoc: int, t_send: float, t_recv: float = 0.0) -> bool:
+        """Handle one received datagram (received at ``t_recv``, perf_counter); ``True`` when it is the
+        valid reply of this cycle."""
         try:
             sen = parse_sen(data, self.override_tag, MAX_PACKET_BYTES)
         except ProtocolError as e:
@@ -206,7 +207,7 @@ class RsiSimController:
             else:
                 self._count(wrong_ipoc=1)
             return False
-        rtt = time.perf_counter() - t_send
+        rtt = t_recv - t_send
         if sen.override is not None and sen.override != int(self.path.override_percent):
             self.path.set_override(min(max(sen.override, 0), 100))
         with self._lock:
@@ -270,8 +271,9 @@ class RsiSimController:
                     break
                 except OSError:
                     break
+                t_recv = time.perf_counter()
                 if addr[:2] == self.server_addr:
-                    answered = self._classify(data, ipoc, t_send)
+                    answered = self._classify(data, ipoc, t_send, t_recv)
             if not answered:
                 with self._lock:
                     s = self._stats
