@@ -42,14 +42,16 @@ KUKA_IO.md §1 (authoritative on KRL rules):
 
 :func:`write_krl` validates and renders everything before it touches the disk, writes every file
 to a temporary beside its target and only then moves them all into place: after an error no target
-file is created or changed. Validation errors are :class:`KrlError` with a message naming the
-field and the fix.
+file is created or changed. After a successful write, pages ``NAME_nnn`` that an earlier, longer
+export of the same program left in the folder (recognised by their cctmill header) are deleted.
+Validation errors are :class:`KrlError` with a message naming the field and the fix.
 """
 
 from __future__ import annotations
 
 import math
 import os
+import re
 import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -685,4 +687,23 @@ def write_krl(spec: KrlProgramSpec, sections: Sequence[KrlSection], moves: Seque
         data = {k: v.encode("ascii") for k, v in out.files.items()}
     except UnicodeEncodeError as e:   # a bug if it happens: every line is built from ASCII
         raise KrlError("text", f"non-ASCII character in the rendered program ({e})") from e
-    return _write_all(Path(folder), data)
+    paths = _write_all(Path(folder), data)
+    _remove_stale_pages(Path(folder), spec.name, set(out.files))
+    return paths
+
+
+def _remove_stale_pages(folder: Path, name: str, keep: set[str]) -> None:
+    """Delete pages ``NAME_nnn.src/.dat`` an earlier, longer export of this program left behind
+    (only files whose header says cctmill wrote them as a page of ``NAME``)."""
+    pattern = re.compile(rf"{re.escape(name)}_\d{{3,}}\.(src|dat)\Z", re.IGNORECASE)
+    mark = f"&COMMENT cctmill {name} page ".encode("ascii")
+    for p in folder.iterdir():
+        if p.name in keep or not pattern.match(p.name) or not p.is_file():
+            continue
+        try:
+            with open(p, "rb") as fh:
+                head = fh.read(200)
+            if mark in head:
+                p.unlink()
+        except OSError:      # best effort: a stale page is never called
+            continue

@@ -449,3 +449,14 @@ def test_lint_reads_a_folder(tmp_path) -> None:
     (tmp_path / "FOLDER.src").write_bytes((tmp_path / "FOLDER.src").read_bytes().replace(
         b"\r\n", b"\n"))
     assert {p.rule for p in lint_krl(tmp_path)} == {"crlf"}
+
+
+def test_shorter_export_removes_its_own_stale_pages(tmp_path) -> None:
+    mv = [KrlMove("LIN", (j, 0, 0, 0, 90, 0), 0) for j in range(600)]
+    long_paths = write_krl(KrlProgramSpec("STALE", HOME, page_lines=100), _SEC, mv, tmp_path)
+    assert len(long_paths) > 6
+    (tmp_path / "STALE_999.src").write_text("user file\r\n")      # not ours: kept
+    short = write_krl(KrlProgramSpec("STALE", HOME, page_lines=100), _SEC, mv[:150], tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        [p.name for p in short] + ["STALE_999.src"])
+    assert lint_krl({p.name: p.read_bytes() for p in short}) == []
