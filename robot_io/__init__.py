@@ -24,6 +24,7 @@ from robot_io.rsi_sim import RsiSimController
 from robot_io.toolpath import (
     Move,
     MoveKind,
+    MoveList,
     SourceRef,
     Toolpath,
     ToolpathError,
@@ -49,6 +50,7 @@ __all__ = [
     "LintProblem",
     "Move",
     "MoveKind",
+    "MoveList",
     "ProtocolError",
     "RobotLink",
     "RsiServer",

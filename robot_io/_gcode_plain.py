@@ -98,7 +98,7 @@ def scan_plain_lines(text: str, n_lines: int) -> PlainLines | None:
         return None
     cls = _CLASS[b]
     is_nl = cls == _NL
-    line_of = np.cumsum(is_nl, dtype=np.int64)   # line index of every byte but newlines
+    line_of = np.cumsum(is_nl, dtype=np.int32)   # line index of every byte but newlines
     line_start = np.concatenate(([0], np.flatnonzero(is_nl) + 1))
     if line_start.size != n_lines:
         return None
@@ -109,30 +109,27 @@ def scan_plain_lines(text: str, n_lines: int) -> PlainLines | None:
         bad.append(cr[(cr + 1 < n) & (b[nxt] != 10)])          # CR only at the end of a line
     # numbers: maximal runs of digits, points and signs
     is_num = (cls - np.uint8(_DIGIT)) < 3                      # DIGIT, DOT, SIGN (uint8 wraps)
-    prev_num = np.empty(n, bool)
-    prev_num[0] = False
-    prev_num[1:] = is_num[:-1]
-    next_num = np.empty(n, bool)
-    next_num[-1] = False
-    next_num[:-1] = is_num[1:]
-    num_start = np.flatnonzero(is_num & ~prev_num)
-    num_last = np.flatnonzero(is_num & ~next_num)
-    counts = np.cumsum(_COUNT_W[b], dtype=np.uint16)           # sums modulo 2**16, see below
-    run_sum = counts[num_last] - counts[num_start] + _COUNT_W[b[num_start]]
+    starts_num = is_num.copy()
+    starts_num[1:] &= ~is_num[:-1]
+    ends_num = is_num.copy()
+    ends_num[:-1] &= ~is_num[1:]
+    num_start = np.flatnonzero(starts_num)
+    if num_start.size == 0:
+        return None
+    run_len = np.flatnonzero(ends_num) - num_start + 1
+    # digit, point and sign counts of each number in one sum (bytes between numbers weigh 0);
+    # the uint16 fields are exact for runs up to MAX_NUMBER_CHARS long, longer ones are
+    # rejected on their length alone
+    run_sum = np.add.reduceat(_COUNT_W[b], num_start)
     n_digits, n_points, n_signs = run_sum >> 10, (run_sum >> 5) & 31, run_sum & 31
-    run_len = num_last - num_start + 1
-    # (every count fits its bit field when the run is at most MAX_NUMBER_CHARS long; longer
-    # runs are rejected on their length alone)
     good_run = ((run_len <= MAX_NUMBER_CHARS) & (n_digits >= 1) & (n_points <= 1)
                 & (n_signs == (cls[num_start] == _SIGN)))
     bad.append(num_start[~good_run])
     # tokens: a letter or the start of a number; a line must read letter, number, letter, ...
     is_letter = cls == _LETTER
-    tok = np.flatnonzero(is_letter | (is_num & ~prev_num))
+    tok = np.flatnonzero(is_letter | starts_num)
     tok_letter = is_letter[tok]
     tok_line = line_of[tok]
-    if tok.size == 0:
-        return None
     same = tok_line[1:] == tok_line[:-1]
     bad.append(tok[1:][same & (tok_letter[1:] == tok_letter[:-1])])
     first = np.concatenate(([True], ~same))
@@ -143,11 +140,11 @@ def scan_plain_lines(text: str, n_lines: int) -> PlainLines | None:
     if not good_run.all():
         drop = np.zeros(n + 1, np.int8)     # runs are disjoint: +1 at a start, -1 past its end
         drop[num_start[~good_run]] = 1
-        drop[num_last[~good_run] + 1] = -1
+        drop[(num_start + run_len)[~good_run]] = -1
         keep[np.cumsum(drop[:-1]).astype(bool)] = 32
         keep[num_start[~good_run]] = ord("0")
     values = np.fromstring(keep.tobytes(), dtype=float, sep=" ")
-    if values.size != num_start.size or values.size == 0:
+    if values.size != num_start.size:
         return None
     # words: each letter with the number token after it (lines where that fails are bad above)
     wi = np.flatnonzero(tok_letter)
@@ -178,7 +175,9 @@ def scan_plain_lines(text: str, n_lines: int) -> PlainLines | None:
         out[ch] = col
     axis = np.flatnonzero((wletter == ord("X")) | (wletter == ord("Y")) | (wletter == ord("Z")))
     axis_line = wline[axis]
-    first_axis = axis[np.concatenate(([True], axis_line[1:] != axis_line[:-1]))]
+    starts_line = np.ones(axis.size, bool)
+    starts_line[1:] = axis_line[1:] != axis_line[:-1]
+    first_axis = axis[starts_line]
     col0 = np.zeros(n_l, np.int64)
     col0[wline[first_axis]] = wcol[first_axis]
     has_axis = np.zeros(n_l, bool)

@@ -65,14 +65,17 @@ table-table machine with LinuxCNC's ``xyzac-trt-kins`` rotation order and signs,
 ``tcp=None`` (default) follows M428/M429 in the program, starting with TCP off.
 The raw angles in force are stored in ``Move.extra`` as ``{"A": rad, "C": rad}``.
 
-Speed: one compiled regex per line (:data:`robot_io._gcode_words.TOKEN`, ``findall`` for lines of
-words only, ``finditer`` with exact columns for lines with comments or problems), plain floats and
-tuples in the interpreter, one numpy array of end points per program. Reading is linear in the
-input size, also for a 10 MB single line, and never recursive. Measured on a shared 2-core box
-(best of 5, CPU time): 90–100 k lines/s on the 35 k-line ``camotics_cameo_nnumbered.nc``, about 3×
-pygcode 0.2.1's ``Line`` parse alone (which resolves nothing and builds no moves) and 15–17×
-pygcode's ``Line`` + ``Machine.process_block``. Building the frozen :class:`Move` objects (about
-3 µs each, with the dataclass ``__init__`` bypassed) and the garbage collector take half the time.
+Speed: a 3-axis CAM program is mostly *plain* lines (only N/G0/G1/X/Y/Z/F words). The reader
+scans the whole text once with numpy, reads the numbers of the plain lines in one
+``np.fromstring`` call and executes long runs of them as array operations
+(:mod:`robot_io._gcode_plain`); every other line goes through the line-by-line interpreter (one
+compiled regex per line, :data:`robot_io._gcode_words.TOKEN`), which stays the definition of what
+a line means — both ways give the same toolpath to the bit, the same warnings and the same errors
+(``test_gcode`` checks it on the shared programs and on random and mutated ones). Moves are kept
+as columns and ``Toolpath.moves`` is a :class:`~robot_io.toolpath.MoveList` that builds each
+:class:`Move` on first access (about 2 µs each). Reading is linear in the input size, also for a
+10 MB single line, and never recursive. ``benchmarks/toolpath_speed.py`` measures it against
+pygcode in the same run; see the README's Performance section for the figures.
 """
 
 from __future__ import annotations

@@ -13,6 +13,7 @@ This module is ``robot_io``'s own: it does not import ``planner``.
 from __future__ import annotations
 
 import enum
+import gc
 import math
 from collections import Counter
 from collections.abc import Iterator, Sequence
@@ -238,7 +239,9 @@ class MoveList(Sequence[Move]):
 
     def __getitem__(self, index: int | slice) -> Move | list[Move]:
         if isinstance(index, slice):
-            return [self._get(i) for i in range(*index.indices(len(self._moves)))]
+            if None in self._moves:
+                self._build_all()
+            return self._moves[index]  # type: ignore[return-value]
         i = index.__index__()
         if i < 0:
             i += len(self._moves)
@@ -248,9 +251,7 @@ class MoveList(Sequence[Move]):
 
     def __iter__(self) -> Iterator[Move]:
         if None in self._moves:
-            for i, m in enumerate(self._moves):
-                if m is None:
-                    self._build(i)
+            self._build_all()
         return iter(self._moves)  # type: ignore[arg-type]
 
     def __eq__(self, other: object) -> bool:
@@ -266,6 +267,41 @@ class MoveList(Sequence[Move]):
     def _get(self, i: int) -> Move:
         m = self._moves[i]
         return self._build(i) if m is None else m
+
+    def _build_all(self) -> None:
+        """Make every move not made yet, with the garbage collector paused: the objects made
+        here only reference arrays and each other, and collecting while making tens of thousands
+        of them doubles the time (it is switched back on in any case)."""
+        was_enabled = gc.isenabled()
+        gc.disable()
+        try:
+            if self._lists is None:
+                self._lists = (*(c.tolist() for c in self._cols), list(self._ends))
+            kinds, lines, columns, feeds, durations, spindles, tools, starts, rows = self._lists
+            moves, sparse, file, order = self._moves, self._sparse, self._file, _KIND_ORDER
+            new, setattr_ = _OBJ_NEW, _OBJ_SET
+            for i in range(len(moves)):
+                if moves[i] is not None:
+                    continue
+                if i in sparse:
+                    self._build(i)
+                    continue
+                src = new(SourceRef)
+                setattr_(src, "__dict__", {"file": file, "line": lines[i], "column": columns[i]})
+                feed, duration, spindle, tool = feeds[i], durations[i], spindles[i], tools[i]
+                mv = new(Move)
+                setattr_(mv, "__dict__", {
+                    "kind": order[kinds[i]],
+                    "start": (rows[i - 1] if i else None) if starts[i] == 1 else None,
+                    "end": rows[i], "source": src, "feed": None if feed != feed else feed,
+                    "duration": None if duration != duration else duration, "center": None,
+                    "normal": None, "turns": 0, "tool_axis": None,
+                    "spindle_rpm": None if spindle != spindle else spindle,
+                    "tool": None if tool < 0 else tool, "extra": {}})
+                moves[i] = mv
+        finally:
+            if was_enabled:
+                gc.enable()
 
     def _build(self, i: int) -> Move:
         """Make move ``i`` without the frozen-dataclass ``__init__`` (13 ``object.__setattr__``

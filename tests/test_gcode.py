@@ -528,3 +528,150 @@ def test_reader_object_options_and_file_errors(tmp_path: Path) -> None:
         read_gcode(path, rotary="xyz-spindle")
     with pytest.raises(ToolpathError, match="cannot read the file"):
         read_gcode(tmp_path / "missing.nc")
+
+
+# --------------------------------------------------------------------------- bulk path, move list
+def _same(a, b) -> bool:
+    """Equal to the bit (floats by their hex form, arrays by bytes, dtype and write flag)."""
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return (isinstance(a, np.ndarray) and isinstance(b, np.ndarray) and a.shape == b.shape
+                and a.dtype == b.dtype and a.tobytes() == b.tobytes()
+                and a.flags.writeable == b.flags.writeable)
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, float):
+        return a.hex() == b.hex()
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, (list, tuple)):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    if dataclasses.is_dataclass(a):
+        return _same(vars(a), vars(b))
+    return a == b
+
+
+def _read_both_ways(text: str, strict: bool, **kw):
+    """(bulk, interpreter-only) outcomes: a Toolpath or the ToolpathError message."""
+    from robot_io._gcode_interp import run_program
+    from robot_io.gcode import GcodeOptions
+
+    out = []
+    for plain in (True, False):
+        opts = GcodeOptions.from_kwargs(**kw)
+        try:
+            out.append(run_program(text, "<string>", strict, opts, plain=plain))
+        except ToolpathError as e:
+            out.append(str(e))
+    return out
+
+
+def _assert_same_reading(fast, ref) -> None:
+    if isinstance(ref, str) or isinstance(fast, str):
+        assert fast == ref
+        return
+    assert len(fast.moves) == len(ref.moves)
+    fm, rm = list(fast.moves), list(ref.moves)
+    for i, (a, b) in enumerate(zip(fm, rm, strict=True)):
+        assert _same(a, b), f"move {i}: {a} != {b}"
+        if i:
+            assert (a.start is fm[i - 1].end) == (b.start is rm[i - 1].end)
+    assert [(str(w), w.category) for w in fast.warnings] == [
+        (str(w), w.category) for w in ref.warnings]
+    assert dict(fast.skipped) == dict(ref.skipped)
+    assert _same(fast.meta, ref.meta) and fast.units == ref.units
+
+
+@pytest.mark.parametrize("name", sorted(SHARED))
+def test_bulk_path_reads_the_shared_programs_like_the_interpreter(
+        name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    from robot_io import _gcode_interp
+
+    text = _data(name).read_text()
+    bulk = {"lines": 0}
+    real = _gcode_interp.execute_plain
+
+    def counting(run, scan, a, b):
+        c = real(run, scan, a, b)
+        bulk["lines"] += c - a
+        return c
+
+    monkeypatch.setattr(_gcode_interp, "execute_plain", counting)
+    for strict in (True, False):
+        fast, ref = _read_both_ways(text, strict, **SHARED[name]["kw"])
+        _assert_same_reading(fast, ref)
+    # the 3-axis CAM programs are almost all plain lines and go through the bulk path
+    share = bulk["lines"] / 2 / (text.count("\n") + 1)
+    if name.startswith("camotics_"):
+        assert share > 0.99
+    elif "5ax" in name:
+        assert share == 0.0   # rotary kinematics: every line through the interpreter
+
+
+def _plain_program(rng: np.random.Generator) -> str:
+    """A random program of mostly plain lines (packed, spaced, N words, lower case, CRLF) with
+    a few lines that need the interpreter (modes, arcs, comments, program end, rotary words)."""
+    special = ["G91", "G90", "G20", "G21", "G93", "G94", "M30", "(note)", "; tail", "%", "/X1",
+               "G2 X1 Y1 I1 J0", "T2 M6", "S900 M3", "M5", "G28", "G81 X1 Y1 Z-1 R1", "G80",
+               "M428", "G0 A10", "F0", "G1", "G0", "", " \t"]
+
+    def num() -> str:
+        v = rng.uniform(-200, 200)
+        return [f"{v:.3f}", f"{v:.0f}.", f"{int(v)}", f"{v:.4f}".replace("0.", ".", 1),
+                f"{abs(v):+.2f}", "-0", f"{v:.6f}"][int(rng.integers(7))]
+
+    lines = ["G21 G90 G17"] if rng.random() < 0.7 else []
+    if rng.random() < 0.7:
+        lines.append(f"G0 X{num()} Y{num()} Z{num()}")
+    if rng.random() < 0.6:
+        lines.append(f"G1 F{rng.uniform(1, 900):.1f}")
+    for _ in range(int(rng.integers(20, 120))):
+        if rng.random() < 0.04:
+            lines.append(special[int(rng.integers(len(special)))])
+            continue
+        words = [f"N{int(rng.integers(0, 99999))}"] if rng.random() < 0.3 else []
+        if rng.random() < 0.08:
+            words.append(["G0", "G1", "G00", "G01", "g1", "G 1", "G001"][int(rng.integers(7))])
+        words += [k + num() for k in "XYZ" if rng.random() < 0.5]
+        if rng.random() < 0.05:
+            words.append("F" + num().lstrip("-+"))
+        if rng.random() < 0.1:
+            rng.shuffle(words)
+        line = ("" if rng.random() < 0.3 else " ").join(words)
+        lines.append(line.lower() if rng.random() < 0.05 else line)
+    return ("\r\n" if rng.random() < 0.15 else "\n").join(lines)
+
+
+def test_bulk_path_matches_the_interpreter_on_random_programs(rng: np.random.Generator) -> None:
+    alphabet = b"0123456789.+-XYZIJKRFGMPABCN ()%;/#\n\t\r\x00\xff\xe9xyzfgn"
+    outcomes = {"ok": 0, "error": 0}
+    for case in range(160):
+        text = _plain_program(rng)
+        if case % 2:
+            text = mutate(text.encode(), alphabet, rng, edits=25).decode("latin-1")
+        kw = [{}, {"rotary": "xyzac-trunnion"}, {"initial_position": (0.001, 0.0, 0.0)},
+              {"default_units": "inch"}][case % 4]
+        for strict in (True, False):
+            fast, ref = _read_both_ways(text, strict, **kw)
+            _assert_same_reading(fast, ref)
+            outcomes["error" if isinstance(ref, str) else "ok"] += 1
+    assert outcomes["ok"] > 100 and outcomes["error"] > 20
+
+
+def test_move_list_reads_like_a_list() -> None:
+    text = PRE + "".join(f"G1 X{i} Y{i % 7}\n" for i in range(40))
+    tp = read_gcode_text(text)
+    moves = tp.moves
+    assert type(moves).__name__ == "MoveList" and len(moves) == 41
+    assert moves[-1] is moves[40] and moves[3] is moves[3]
+    assert moves[2].start is moves[1].end and moves[0].start is None
+    assert [m.source.line for m in moves[1:4]] == [3, 4, 5]
+    assert moves[::20] == [moves[0], moves[20], moves[40]]
+    assert list(moves) == moves and moves == list(moves)
+    np.testing.assert_array_equal(moves.ends, np.array([m.end for m in moves]))
+    assert not moves.ends.flags.writeable
+    assert moves[40].feed == pytest.approx(100 * MM / 60) and moves[0].feed is None
+    with pytest.raises(IndexError):
+        moves[41]
+    assert "41 moves" in repr(moves)
+    empty = read_gcode_text("G21\n").moves
+    assert len(empty) == 0 and list(empty) == [] and empty == []
