@@ -65,8 +65,9 @@ __all__ = [
     "plan_to_krl",
 ]
 
-#: Feeds are written to this resolution [m/s] (1 µm/s = 0.001 mm/s … 1 nm/s here: 1e-9), rounded
-#: down; a KRL REAL (32-bit) holds about 7 significant digits, i.e. ~1e-10 m/s at 2 mm/s.
+#: Feeds are written to this resolution [m/s] (1 nm/s = 0.000001 mm/s), rounded down so the
+#: written feed never exceeds the plan's; a KRL REAL (32-bit) holds about 7 significant digits,
+#: i.e. ~1e-10 m/s at 2 mm/s, so nothing the controller can use is lost.
 FEED_RESOLUTION_M_S = 1e-9
 #: Path speed of rapid sections without a planned feed [m/s] (the KUKA posts' default $VEL.CP).
 RAPID_FEED_M_S = 0.2
