@@ -272,8 +272,12 @@ class RsiSimController:
                 except OSError:
                     break
                 t_recv = time.perf_counter()
-                if addr[:2] == self.server_addr:
-                    answered = self._classify(data, ipoc, t_send, t_recv)
+                if addr[:2] != self.server_addr:
+                    continue
+                if t_recv > deadline:  # woke up past the deadline: too late for this cycle
+                    self._classify(data, -1, t_send, t_recv)
+                    break
+                answered = self._classify(data, ipoc, t_send, t_recv)
             if not answered:
                 with self._lock:
                     s = self._stats

@@ -392,16 +392,18 @@ def test_client_counts_bad_replies_and_keeps_running(reply):
 # -- cctmill robot-sim kvp ------------------------------------------------------------------------------
 
 def test_cli_robot_sim_kvp_serves_until_the_duration(capsys):
-    from planner.cli import main
+    from planner.cli import build_parser, main
 
+    build_parser()  # import every command module before the clock starts
     result = {}
     t = threading.Thread(target=lambda: result.setdefault(
-        "rc", main(["robot-sim", "kvp", "--port", "0", "--duration-s", "1.0", "--stats-every-s", "0.2",
+        "rc", main(["robot-sim", "kvp", "--port", "0", "--duration-s", "1.5", "--stats-every-s", "0.2",
                     "--no-count-trailer"])))
     t.start()
     seen: list[str] = []
     try:
-        assert wait_for(lambda: "listening on" in "".join(seen.append(capsys.readouterr().out) or seen))
+        assert wait_for(lambda: "listening on" in "".join(seen.append(capsys.readouterr().out) or seen),
+                        10.0)
         out = "".join(seen)
         port = int(out.split("listening on 127.0.0.1:")[1].split()[0])
         client = py_openshowvar.openshowvar("127.0.0.1", port)
