@@ -9,8 +9,8 @@ normal to the machined wall), γ, the chatter margin, the spindle power.
 **feed ceiling**, the largest feed at which the sample meets every limit — chatter margin ≥ the
 required margin, resultant force ≤ the force limit, ‖δ‖ ≤ the deflection tolerance, spindle power ≤
 its limit — *and every feed below it does too* (the feed limit of the stability characteristic,
-SPEC §5 step 7). It is found on a log-spaced feed grid and refined by bisection, every evaluation
-with the full CCT model. Force, deflection and power grow with feed; the margin of the ``thesis``
+SPEC §5 step 7). It is found on a log-spaced feed grid and refined by regula falsi (Illinois) on
+the largest normalised constraint slack in log-feed, every evaluation with the full CCT model. Force, deflection and power grow with feed; the margin of the ``thesis``
 process model falls with it and that of the ``oriented`` model hardly changes, so the constraints
 are monotone in feed and a ceiling represents them exactly; the grid catches a constraint that
 fails and recovers between two grid feeds only if it fails at a grid feed. The independent checker
@@ -32,9 +32,10 @@ from planner.job import Job
 from planner.prepare import Prepared
 
 __all__ = [
-    "BISECTION_STEPS",
+    "CEILING_RTOL",
     "CONSTRAINTS",
     "FEED_GRID",
+    "MAX_REFINE_STEPS",
     "Ceilings",
     "Evaluation",
     "Limits",
@@ -44,12 +45,18 @@ __all__ = [
 
 #: The process constraints checked at every engaged sample, in reporting order.
 CONSTRAINTS = ("chatter", "force", "deflection", "power")
-#: Feeds of the coarse grid, log-spaced over [feed_min, feed_max] [-]. 2.1× apart for the
-#: default 0.5…40 mm/s range; the bisection below refines inside one interval.
-FEED_GRID = 7
-#: Bisection steps in log-feed inside the first failing grid interval: 2.1^(1/2^10) − 1 ≈ 0.07 %
-#: resolution of the ceiling (the ceiling is the feasible end of the final bracket).
-BISECTION_STEPS = 10
+#: Feeds of the coarse grid, log-spaced over [feed_min, feed_max] [-] (3× apart for the default
+#: 0.5…40 mm/s range); the refinement below works inside the first failing interval.
+FEED_GRID = 5
+#: Relative width of the final bracket [-]: the ceiling is its feasible end, at most 0.1 % below
+#: the true edge.
+CEILING_RTOL = 1e-3
+#: Regula-falsi steps before a bracket is closed by halving alone (slacks are smooth in log-feed:
+#: 3–5 steps close it; this bound only guards a pathological sample).
+MAX_REFINE_STEPS = 40
+#: Scale of the chatter margin's slack [N/m] (only its sign matters for the ceiling; the scale
+#: makes the interpolation well conditioned next to the force/deflection/power ratios).
+MARGIN_SCALE = 1e5
 #: Outputs of the point Function the planner needs (a smaller graph is faster).
 _OUTPUTS = ("force_o", "force_base", "deflection", "margin", "stable", "gamma", "gamma_margin",
             "power", "omega2")
@@ -145,6 +152,9 @@ class Evaluation:
         power: spindle power [W], (m,).
         natural_frequencies: 2-DOF natural frequencies [Hz], (m, 2); NaN for isotropic mass.
         ok: per constraint of :data:`CONSTRAINTS`, (m, 4) bool.
+        slack: per constraint, a continuous measure that is ≤ 0 exactly where ``ok`` holds
+            (value / limit − 1 for force, deflection and power; the margin's shortfall for
+            chatter), (m, 4).
     """
 
     feed: np.ndarray
@@ -160,6 +170,7 @@ class Evaluation:
     power: np.ndarray
     natural_frequencies: np.ndarray
     ok: np.ndarray
+    slack: np.ndarray
 
     @property
     def all_ok(self) -> np.ndarray:
@@ -255,7 +266,8 @@ class PathModel:
         if n == 0:
             z = np.zeros(0)
             return Evaluation(z, z, np.zeros((0, 3)), np.zeros((0, 3)), z, z, z, z, z,
-                              np.zeros(0, bool), z, np.zeros((0, 2)), np.zeros((0, 4), bool))
+                              np.zeros(0, bool), z, np.zeros((0, 2)), np.zeros((0, 4), bool),
+                              np.zeros((0, 4)))
         res = self._mapped(n)(q=self.q[:, sel], cut=self.cut[:, sel], feed=feeds.reshape(1, -1),
                               params=self._param_vec)
         self.evaluations += 1
@@ -268,14 +280,19 @@ class PathModel:
         if self.criterion == "gamma_window":
             stable = gamma_margin > 0.0
             chatter_ok = stable
+            chatter_slack = np.where(stable, -gamma_margin, np.maximum(-gamma_margin, 1e-12))
         else:
             stable = r["stable"].reshape(n) > 0.5
             chatter_ok = stable & (margin >= self.limits.margin_min)
+            short = (self.limits.margin_min - margin) / MARGIN_SCALE
+            chatter_slack = np.where(chatter_ok, np.minimum(short, 0.0), np.maximum(short, 1e-12))
         power = r["power"].reshape(n)
         dnorm = np.linalg.norm(defl, axis=1)
         lim = self.limits
         ok = np.column_stack([chatter_ok, force <= lim.force_max, dnorm <= lim.deflection_tol,
                               power <= lim.power_max])
+        slack = np.column_stack([chatter_slack, force / lim.force_max - 1.0,
+                                 dnorm / lim.deflection_tol - 1.0, power / lim.power_max - 1.0])
         if self.mass_model == "robot":
             freqs = np.sqrt(np.maximum(r["omega2"].reshape(2, n).T, 0.0)) / (2.0 * np.pi)
         else:
@@ -284,7 +301,7 @@ class PathModel:
             feed=feeds, force=force, force_base=r["force_base"].reshape(3, n).T, deflection=defl,
             deflection_norm=dnorm, deflection_normal=np.einsum("ij,ij->i", defl, self.radial_dir[sel]),
             gamma=r["gamma"].reshape(n), margin=margin, gamma_margin=gamma_margin, stable=stable,
-            power=power, natural_frequencies=freqs, ok=ok)
+            power=power, natural_frequencies=freqs, ok=ok, slack=slack)
 
     def ceilings(self) -> Ceilings:
         """The feed ceiling of every engaged sample (module docstring)."""
@@ -294,6 +311,8 @@ class PathModel:
         grid = np.geomspace(lim.feed_min, lim.feed_max, FEED_GRID)
         first_bad = np.full(m, FEED_GRID)
         floor = np.full(m, "", dtype=object)
+        g_grid = np.full((m, FEED_GRID), np.nan)
+        why_grid = np.zeros((m, FEED_GRID), int)
         for j, f in enumerate(grid):
             open_ = np.flatnonzero(first_bad == FEED_GRID)
             if open_.size == 0:
@@ -301,6 +320,8 @@ class PathModel:
             ev = self.evaluate(np.full(open_.size, f), open_)
             bad = ~ev.all_ok
             first_bad[open_[bad]] = j
+            g_grid[open_, j] = np.max(ev.slack, axis=1)
+            why_grid[open_, j] = np.argmax(ev.slack, axis=1)
             if j == 0:
                 for k in np.flatnonzero(bad):
                     floor[open_[k]] = CONSTRAINTS[int(np.argmin(ev.ok[k]))]
@@ -310,25 +331,51 @@ class PathModel:
             binding[k] = floor[k]
         refine = np.flatnonzero((first_bad > 0) & (first_bad < FEED_GRID))
         if refine.size:
-            lo = np.log(grid[first_bad[refine] - 1])
-            hi = np.log(grid[first_bad[refine]])
-            why = np.full(refine.size, -1)
-            for _ in range(BISECTION_STEPS):
-                mid = 0.5 * (lo + hi)
-                ev = self.evaluate(np.exp(mid), refine)
-                good = ev.all_ok
-                lo = np.where(good, mid, lo)
-                hi = np.where(good, hi, mid)
-                why = np.where(good, why, np.argmin(ev.ok, axis=1))
-            unknown = why < 0  # never failed inside: the grid point's failure names it
-            if np.any(unknown):
-                ev = self.evaluate(np.exp(hi[unknown]), refine[unknown])
-                why[unknown] = np.argmin(ev.ok, axis=1)
-            feed[refine] = np.exp(lo)
+            j = first_bad[refine]
+            feed[refine], why = self._refine(refine, grid[j - 1], grid[j],
+                                             g_grid[refine, j - 1], g_grid[refine, j],
+                                             why_grid[refine, j])
             for k, w in zip(refine, why, strict=True):
                 binding[k] = CONSTRAINTS[int(w)]
         return Ceilings(feed=feed, binding=binding.astype(str), floor_violation=floor.astype(str),
                         evaluations=self.evaluations - start)
+
+    def _refine(self, idx: np.ndarray, f_lo: np.ndarray, f_hi: np.ndarray, g_lo: np.ndarray,
+                g_hi: np.ndarray, why: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Close the brackets [f_lo (all ok), f_hi (a limit broken)] of samples ``idx``, given
+        the largest slack at both ends and the constraint broken at ``f_hi``.
+
+        Illinois regula falsi on g(x) = max slack, x = log f (g ≤ 0 ⇔ every limit holds); a side
+        kept twice has its value halved, and no step lands within half the tolerance of an end,
+        so the bracket closes from both sides. Returns the feasible ends
+        and, per sample, the constraint broken at the infeasible end.
+        """
+        lo, hi = np.log(f_lo), np.log(f_hi)
+        g_lo, g_hi, why = g_lo.copy(), g_hi.copy(), why.copy()
+        side = np.zeros(idx.size, int)
+        todo = np.flatnonzero(hi - lo > np.log1p(CEILING_RTOL))
+        for _ in range(MAX_REFINE_STEPS):
+            if todo.size == 0:
+                break
+            a, b, ga, gb = lo[todo], hi[todo], g_lo[todo], g_hi[todo]
+            t = ga / np.minimum(ga - gb, -1e-300)
+            t = np.where(np.isfinite(t), np.clip(t, 0.0, 1.0), 0.5)
+            # never closer than half the tolerance to an end, so the bracket keeps closing
+            step = 0.5 * np.log1p(CEILING_RTOL)
+            x = np.clip(a + t * (b - a), a + step, b - step)
+            e = self.evaluate(np.exp(x), idx[todo])
+            g = np.max(e.slack, axis=1)
+            good = g <= 0.0
+            j_good, j_bad = todo[good], todo[~good]
+            lo[j_good], g_lo[j_good] = x[good], g[good]
+            g_hi[j_good] *= np.where(side[j_good] == 1, 0.5, 1.0)
+            side[j_good] = 1
+            hi[j_bad], g_hi[j_bad] = x[~good], g[~good]
+            why[j_bad] = np.argmax(e.slack[~good], axis=1)
+            g_lo[j_bad] *= np.where(side[j_bad] == -1, 0.5, 1.0)
+            side[j_bad] = -1
+            todo = todo[hi[todo] - lo[todo] > np.log1p(CEILING_RTOL)]
+        return np.exp(lo), why
 
     def mode_name(self, k: int) -> str:
         """Milling mode of engaged sample ``k``."""

@@ -192,8 +192,19 @@ def _other_sections(runs, prep: Prepared, limits: Limits) -> list[Section]:
 
 
 def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float | None = None,
-                  limits: Limits | None = None, f_ref: float | None = None) -> PlanResult:
-    """Plan an already prepared job (see :func:`plan_job`)."""
+                  limits: Limits | None = None, f_ref: float | None = None,
+                  thesis_every_sample: bool = True) -> PlanResult:
+    """Plan an already prepared job (see :func:`plan_job`).
+
+    Args:
+        prep: the prepared job.
+        method: ``optimize``, ``thesis`` or ``constant``.
+        safety_factor: the thesis safety factor (default: the job's).
+        limits: override the job's limits.
+        f_ref: feed scale of the optimiser's variables [m/s] (default feed_max).
+        thesis_every_sample: the thesis baseline also holds at every sample (default); False
+            runs it exactly as published (midpoints only), for comparison.
+    """
     if method not in METHODS:
         raise CctmillError(f"--method: {method!r} is not one of {', '.join(METHODS)}")
     job = prep.job
@@ -231,7 +242,8 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
     else:
         cut = thesis_sections(runs, path.s, ceiling, binding, gamma_at,
                               job.plan.thesis_section_length_mm * 1e-3, limits.section_length_min,
-                              sf, limits.feed_min)
+                              sf, limits.feed_min,
+                              every_sample=thesis_every_sample or method != "thesis")
         if method == "optimize":
             warm = np.full(n, np.nan)
             for sec in cut:

@@ -64,7 +64,7 @@ def _mid(s: np.ndarray, sec: tuple[int, int]) -> int:
 def thesis_sections(runs: list[tuple[int, int, int]], s: np.ndarray, ceiling: np.ndarray,
                     ceiling_binding: np.ndarray, gamma_at: Callable[[np.ndarray, np.ndarray], np.ndarray],
                     section_length: float, section_length_min: float, safety_factor: float,
-                    feed_min: float) -> list[Section]:
+                    feed_min: float, every_sample: bool = True) -> list[Section]:
     """The thesis baseline's sections of the ``cut`` runs.
 
     Args:
@@ -77,6 +77,9 @@ def thesis_sections(runs: list[tuple[int, int, int]], s: np.ndarray, ceiling: np
         section_length_min: no section is halved below this [m].
         safety_factor: f_real = f_max / safety_factor.
         feed_min: lowest feed [m/s].
+        every_sample: also require every sample of a section to hold at f_real (module
+            docstring); ``False`` is the algorithm exactly as published, midpoints only — its plans
+            may break limits between midpoints (the benchmark counts how often).
     """
     out: list[Section] = []
     for a, b, kind in runs:
@@ -98,7 +101,8 @@ def thesis_sections(runs: list[tuple[int, int, int]], s: np.ndarray, ceiling: np
                 dg = (np.interp(ends, s_mid, g_unwrapped) - np.interp(starts, s_mid, g_unwrapped))
             else:
                 dg = np.zeros(1)
-            low = np.array([np.nanmin(ceiling[x[0]:x[1]]) < fr for x, fr in zip(secs, f_real, strict=True)])
+            low = np.array([every_sample and np.nanmin(ceiling[x[0]:x[1]]) < fr
+                            for x, fr in zip(secs, f_real, strict=True)], dtype=bool)
             fail = (np.abs(dg) >= dg_max) | low
             splittable = np.array([_length(s, x) >= 2 * section_length_min for x in secs])
             todo = fail & splittable
@@ -121,10 +125,11 @@ def thesis_sections(runs: list[tuple[int, int, int]], s: np.ndarray, ceiling: np
             lowest = float(np.nanmin(ceiling[x[0]:x[1]]))
             note = ""
             tight = mid
-            if lowest < f_real:
+            if every_sample and lowest < f_real:
                 f_real = max(lowest / safety_factor, feed_min)
                 tight = x[0] + int(np.nanargmin(ceiling[x[0]:x[1]]))
                 note = "shortest section still failing at its midpoint feed: lowest ceiling / SF"
-            out.append(Section(start=x[0], stop=x[1], kind=CUT, feed=float(min(f_real, lowest)),
+            out.append(Section(start=x[0], stop=x[1], kind=CUT,
+                               feed=float(min(f_real, lowest) if every_sample else f_real),
                                binding=str(ceiling_binding[tight]), note=note))
     return out
