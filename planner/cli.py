@@ -30,7 +30,8 @@ __all__ = ["build_parser", "main"]
 #: Modules that add one subcommand each: ``register(sub)`` adds its parser and sets ``run``.
 #: One module per command keeps this shell thin and the commands apart.
 _COMMAND_MODULES: tuple[str, ...] = ("planner.cli_export", "planner.cli_plan",
-                                     "planner.cli_robot_sim", "planner.cli_simulate")
+                                     "planner.cli_robot_sim", "planner.cli_simulate",
+                                     "planner.cli_supervise")
 
 #: The thesis's Case 1 (pose, frame and cut), used by ``cctmill demo``.
 CASE1 = {

@@ -87,20 +87,25 @@ class SimCell:
             self.rsi_controller.stop()
 
     def start_controller(self) -> None:
-        """Bring a fresh controller back on the same address (its override starts at 100 %)."""
+        """Bring the controller back on the same address, with the override it had (``$OV_PRO``
+        belongs to the controller, not to the proxy or the RSI context)."""
         if self.kvp_server is not None:
             port = self.kvp_server.port
+            # the controller keeps its $OV_PRO while the proxy is away
+            variables = dict(self.kvp_server.variables)
             deadline = time.monotonic() + 2.0
             while True:
                 try:
-                    self.kvp_server = KvpSimServer(port=port).start()
+                    self.kvp_server = KvpSimServer(port=port, variables=variables).start()
                     return
                 except Exception:  # noqa: BLE001 - port still in TIME_WAIT on a slow machine
                     if time.monotonic() > deadline:
                         raise
                     time.sleep(0.02)
         elif isinstance(self.link, RsiServer):
-            self.rsi_controller = RsiSimController(self.link.address, cycle_s=self.cycle_s).start()
+            last = self.rsi_controller.override_percent if self.rsi_controller is not None else 100.0
+            self.rsi_controller = RsiSimController(self.link.address, cycle_s=self.cycle_s,
+                                                   override_percent=last).start()
 
     def close(self) -> None:
         self.link.close()

@@ -129,6 +129,11 @@ class SimulatedCut:
             self._chars[i] = characteristic_of(sec) if sec.get("kind", "cut") == "cut" else None
         return self._chars[i]
 
+    @property
+    def start_clock_s(self) -> float | None:
+        """The clock's reading at simulation time 0 [s] (None before the first read)."""
+        return self._t0
+
     def sim_time(self) -> float:
         """Simulation time now [s] (0 before the first read)."""
         return 0.0 if self._t0 is None else self._clock() - self._t0

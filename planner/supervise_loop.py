@@ -7,7 +7,8 @@ wall time, the sockets staying real). Each iteration:
 1. ``before_step(now)`` (the simulated cut's DAQ: generate and send samples), if given;
 2. ``source.read`` → chunk; ``link.read_override()`` → the override the controller confirmed;
 3. :meth:`Supervisor.step` (its duration is the *step latency*, measured with ``perf_counter``);
-4. ``link.set_override`` when the integer override changes, and every ``keepalive_s``.
+4. ``link.set_override`` when the integer override changes, every ``keepalive_s``, and at once
+   when ``link.connected`` comes back after an outage.
 
 Nothing here raises from inside the loop: a source or link that throws (they should not) is
 counted and treated as "no samples" / "link down". Link transitions (down, back) are logged in
@@ -55,7 +56,7 @@ class LoopReport:
         cycle_latency_s: duration of each whole iteration's work (read, step, command) [s].
         overruns: iterations whose work took longer than the cycle.
         link_writes: set_override calls; link_failures: calls answered not ok.
-        link_downs: times the link went from ok to not ok.
+        link_downs: times the link went from up (connected and writes ok) to down.
         status_counts: steps per supervisor status.
         last: the last step's result.
         extra: free-form additions (the CLI adds source and link statistics).
@@ -115,27 +116,35 @@ def run_loop(sup: Supervisor, source: SignalSource, link: RobotLink, duration_s:
         res = sup.step(now, chunk, applied)
         s1 = time.perf_counter()
         cmd = int(math.floor(res.override + 0.5))
+        try:
+            up = bool(link.connected)
+        except Exception:  # noqa: BLE001
+            up = False
+        why = "link reports not connected"
+        if up and not link_ok:
+            last_sent = None  # link back: send the override again at once
         if cmd != last_sent or now - last_send_t >= keepalive_s:
             try:
                 st = link.set_override(res.override)
-                ok, why = bool(st.ok), str(st.reason)
+                sent_ok, why = bool(st.ok), str(st.reason)
             except Exception as e:  # noqa: BLE001
-                ok, why = False, f"link raised {type(e).__name__}: {e}"
+                sent_ok, why = False, f"link raised {type(e).__name__}: {e}"
             rep.link_writes += 1
             last_send_t = now
-            if ok:
+            if sent_ok:
                 last_sent = cmd
             else:
                 rep.link_failures += 1
                 last_sent = None
-            if ok != link_ok:
-                if not ok:
-                    rep.link_downs += 1
-                sup.log.write({"t_s": now, "section": res.section, "band": res.band, "ucl": res.ucl,
-                               "override": res.override, "status": res.status,
-                               "reason": ("controller link down: " + why) if not ok
-                               else "controller link back: override resent"})
-                link_ok = ok
+            up = up and sent_ok
+        if up != link_ok:
+            if not up:
+                rep.link_downs += 1
+            sup.log.write({"t_s": now, "section": res.section, "band": res.band, "ucl": res.ucl,
+                           "override": res.override, "status": res.status,
+                           "reason": ("controller link down: " + why) if not up
+                           else "controller link back: override resent"})
+            link_ok = up
         w1 = time.perf_counter()
         step_lat[k] = s1 - s0
         cyc_lat[k] = w1 - w0

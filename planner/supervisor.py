@@ -326,7 +326,7 @@ class Supervisor:
             now: supervisor clock [s] (monotonic).
             chunk: samples that arrived since the last step.
             applied_override: override the controller confirmed [percent] (None: assume the one
-                commanded) — used for dead reckoning.
+                commanded) — used for dead reckoning and the expected mean force.
         """
         try:
             return self._step(now, chunk, applied_override)
@@ -381,7 +381,7 @@ class Supervisor:
         missing = now - self._last_signal_now
         expected = None
         if cfg.use_transient_model and tr.char is not None:
-            expected = force_at(tr.char, planned * self._pos / 100.0)
+            expected = force_at(tr.char, planned * ov_applied / 100.0)
 
         if missing > cfg.signal_timeout_s:
             status, target = "safe", min(self.safe_pct, cap)
