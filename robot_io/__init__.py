@@ -21,6 +21,9 @@ from robot_io.readers import FORMATS, detect_format, read_toolpath
 from robot_io.robot_link import LinkError, LinkStats, LinkStatus, ProtocolError, RobotLink
 from robot_io.rsi import RsiServer
 from robot_io.rsi_sim import RsiSimController
+from robot_io.signal_replay import ReplaySource, SignalFileError, load_signal
+from robot_io.signal_source import SignalChunk, SignalSource, SourceStats
+from robot_io.signal_udp import UdpSignalSender, UdpSignalSource
 from robot_io.toolpath import (
     Move,
     MoveKind,
@@ -52,17 +55,25 @@ __all__ = [
     "MoveKind",
     "MoveList",
     "ProtocolError",
+    "ReplaySource",
     "RobotLink",
     "RsiServer",
     "RsiSimController",
+    "SignalChunk",
+    "SignalFileError",
+    "SignalSource",
     "SourceRef",
+    "SourceStats",
     "Toolpath",
     "ToolpathError",
     "ToolpathReader",
     "ToolpathWarning",
+    "UdpSignalSender",
+    "UdpSignalSource",
     "arc_geometry",
     "detect_format",
     "lint_krl",
+    "load_signal",
     "read_apt",
     "read_apt_text",
     "read_gcode",
