@@ -83,6 +83,9 @@ CIRC_AXIS_TOL_DEG = 0.1
 CIRC_MIN_SWEEP_DEG = 1.0
 
 _MM = 1e3
+#: A feed within this fraction of a resolution step of a whole number of steps is that number
+#: (float noise of mm/s → m/s, e.g. 5.0 mm/s must stay 0.005 m/s, not 0.004999999).
+_FEED_SNAP = 1e-6
 
 
 class ExportError(CctmillError):
@@ -115,7 +118,7 @@ def _feed_m_s(feed_mm_s: Any, kind: str) -> float:
     if not math.isfinite(v):
         return v             # the writer refuses it with the section's number
     q = v / FEED_RESOLUTION_M_S
-    k = round(q) if abs(q - round(q)) < 1e-6 else math.floor(q)
+    k = round(q) if abs(q - round(q)) < _FEED_SNAP else math.floor(q)
     return k * FEED_RESOLUTION_M_S if k > 0 else v
 
 

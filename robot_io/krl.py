@@ -463,8 +463,11 @@ def _paginate(secs: list[_Section], budget: int) -> list[list[str]]:
                 while j > i and not s.breakable[j]:
                     j -= 1
             if j <= i:
-                if not cur:     # cannot happen: CIRCs come at most two in a row
-                    raise KrlError("moves", f"section {s.number}: no LIN to break a page at")
+                if not cur:     # a page's worth of CIRCs in a row: no place to break
+                    raise KrlError("moves", f"section {s.number} has a page's worth ({budget} "
+                                   "lines) of CIRCs without a LIN between them, and a page may "
+                                   "not begin with a CIRC; split the section or write part of "
+                                   "the arcs as LINs")
                 pages.append(cur)
                 cur = []
                 continue

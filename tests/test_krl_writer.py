@@ -460,3 +460,15 @@ def test_shorter_export_removes_its_own_stale_pages(tmp_path) -> None:
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
         [p.name for p in short] + ["STALE_999.src"])
     assert lint_krl({p.name: p.read_bytes() for p in short}) == []
+
+
+def test_a_page_of_circs_without_a_lin_is_refused() -> None:
+    mv = [_MV[0]]
+    for j in range(200):        # 200 quarter circles in a row, no LIN between them
+        x0 = 10.0 * j
+        mv.append(KrlMove("CIRC", (x0 + 10, 0, 0, 0, 90, 0), 0,
+                          aux=(x0 + 5, 5, 0, 0, 90, 0)))
+    with pytest.raises(KrlError, match="CIRCs without a LIN between them"):
+        render_krl(KrlProgramSpec("ARCS", HOME, page_lines=100), _SEC, mv)
+    out = render_krl(KrlProgramSpec("ARCS", HOME), _SEC, mv)     # fits one module: fine
+    _lint_clean(out.files, "krc4")
