@@ -97,7 +97,7 @@ def check_plan(prep: Prepared, feed: np.ndarray, kinds: np.ndarray, speed: np.nd
     job = prep.job
     params = model_parameters(job, prep)
     model = PointModel(prep.robot, params, job.model.process_model, job.model.mass_model,
-                       job.model.chatter_criterion)
+                       job.model.chatter_criterion, helix_angle=prep.tool.helix_angle)
     e, path = prep.engagement, prep.path
     feed_dir = e.feed_dir if e.feed_dir is not None else path.feed_dir
     codes = {0: "up", 1: "down", 2: "slot"}
@@ -125,6 +125,9 @@ def check_plan(prep: Prepared, feed: np.ndarray, kinds: np.ndarray, speed: np.nd
         if model.criterion == "gamma_window":
             ok = a.gamma_margin > 0.0
             value, limit = a.gamma_margin, 0.0
+        elif model.criterion == "floquet":
+            ok = a.stable
+            value, limit = a.floquet_margin, 0.0
         else:
             ok = a.stable_eigen and a.margin >= limits.margin_min
             value, limit = a.margin, limits.margin_min

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from models.analysis import ModelParameters, point_function
+from models.analysis import Cut, ModelParameters, point_function
 from models.cutting import MILLING_MODES, load_material
 from models.errors import InputError
 from planner.job import Job
@@ -213,10 +213,10 @@ class PathModel:
         self.params = params or model_parameters(job, prep)
         self.limits = limits or Limits.from_job(job)
         self.criterion = job.model.chatter_criterion
-        if self.criterion not in ("eigen", "gamma_window"):
+        if self.criterion not in ("eigen", "floquet", "gamma_window"):
             raise InputError("model.chatter_criterion",
-                             f"the planner does not support {self.criterion!r} yet; use eigen or "
-                             "gamma_window")
+                             f"{self.criterion!r} is not eigen, floquet or gamma_window")
+        self._floquet_rho: np.ndarray | None = None
         self.process_model = job.model.process_model
         self.mass_model = job.model.mass_model
         self.threads = threads
@@ -277,7 +277,12 @@ class PathModel:
         defl = r["deflection"].reshape(3, n).T
         margin = r["margin"].reshape(n)
         gamma_margin = r["gamma_margin"].reshape(n)
-        if self.criterion == "gamma_window":
+        if self.criterion == "floquet":
+            rho = self.floquet_radius()[sel]
+            stable = rho < 1.0
+            chatter_ok = stable
+            chatter_slack = np.where(stable, rho - 1.0, np.maximum(rho - 1.0, 1e-12))
+        elif self.criterion == "gamma_window":
             stable = gamma_margin > 0.0
             chatter_ok = stable
             chatter_slack = np.where(stable, -gamma_margin, np.maximum(-gamma_margin, 1e-12))
@@ -339,6 +344,32 @@ class PathModel:
                 binding[k] = CONSTRAINTS[int(w)]
         return Ceilings(feed=feed, binding=binding.astype(str), floor_violation=floor.astype(str),
                         evaluations=self.evaluations - start)
+
+    def floquet_radius(self) -> np.ndarray:
+        """Spectral radius of the monodromy matrix per engaged sample, (m,) (``floquet``).
+
+        Without regeneration the time-periodic system does not depend on the feed except through
+        the CCT stiffness, which the mean force barely moves (SPEC §5: far below a degree of γ);
+        it is evaluated once, at ``feed_min``, and the checker re-evaluates it at the planned
+        feed of every sample.
+        """
+        if self._floquet_rho is None:
+            from models.dynamics import pose_structure
+            from models.floquet import floquet_margin
+
+            cuts = [self.cut_at(k) for k in range(len(self))]
+            structures = [pose_structure(self.prep.robot, self.params, self.q[:, k], cuts[k],
+                                         self.limits.feed_min) for k in range(len(self))]
+            self._floquet_rho, _ = floquet_margin(structures, cuts, self.params.coefficients,
+                                                  self.prep.tool.helix_angle)
+        return self._floquet_rho
+
+    def cut_at(self, k: int) -> Cut:
+        """The :class:`~models.analysis.Cut` of engaged sample ``k``."""
+        v = self.cut[:, k]
+        return Cut(feed_dir=v[0:3], radial_dir=v[3:6], a_e=float(v[6]), a_p=float(v[7]),
+                   mode=self.mode_name(k), spindle_speed=float(v[9]), flutes=int(v[10]),
+                   radius=float(v[11]))
 
     def _refine(self, idx: np.ndarray, f_lo: np.ndarray, f_hi: np.ndarray, g_lo: np.ndarray,
                 g_hi: np.ndarray, why: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -157,9 +157,14 @@ def _check_floor(prep: Prepared, model: PathModel, ceil: Ceilings, runs, ds, lim
                       f"{limits.deflection_tol * 1e3:.3f} mm (raise the tolerance, cut shallower "
                       "or move the part where the arm is stiffer)",
         "power": f"{ev.power[0] * 1e-3:.2f} kW > power_max_kw {limits.power_max * 1e-3:.2f} kW",
-        "chatter": f"margin {ev.margin[0]:.3g} N/m below the required "
-                   f"{limits.margin_min:.3g} N/m at every feed (change the pose, the tool "
-                   "rotation or the depths of cut)",
+        "chatter": (f"Floquet spectral radius {model.floquet_radius()[k]:.4f} >= 1 "
+                    if model.criterion == "floquet" else
+                    f"gamma {np.degrees(ev.gamma[0]):.2f} deg outside the calibrated window "
+                    if model.criterion == "gamma_window" else
+                    f"margin {ev.margin[0]:.3g} N/m below the required "
+                    f"{limits.margin_min:.3g} N/m ")
+                   + "at every feed (change the pose, the tool rotation, the spindle speed or "
+                     "the depths of cut)",
     }[what]
     e = prep.engagement
     p = prep.path

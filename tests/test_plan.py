@@ -248,3 +248,16 @@ def test_cli_plan_demo_json(tmp_path, capsys):
     assert doc["method"] == "optimize"
     assert doc["solver"]["status"] == "Solve_Succeeded"
     assert (tmp_path / "plan.json").is_file() and (tmp_path / "report.html").is_file()
+
+
+def test_floquet_criterion_plans_are_checked_and_its_verdict_can_refuse():
+    """The exact time-periodic criterion: a light cut plans and passes the checker; the demo's
+    10 mm deep cut at 4000 rpm is unstable by Floquet (the averaged thesis model calls it stable),
+    so the planner refuses it naming the criterion."""
+    light = _job(model={"chatter_criterion": "floquet"},
+                 engagement={"source": "fixed", "ae_mm": 1.0, "ap_mm": 1.0, "milling": "down"})
+    res = plan_prepared(prepare(light), "optimize")
+    assert np.all(res.model.floquet_radius() < 1.0)
+    assert check_result(res).ok
+    with pytest.raises(PlanInfeasibleError, match=r"chatter limit .* Floquet spectral radius 1\.\d+"):
+        plan_prepared(prepare(_job(model={"chatter_criterion": "floquet"})), "optimize")
