@@ -5,9 +5,10 @@
    against :class:`~robot_io.kvp_sim.KvpSimServer`; py-openshowvar's write on the same server when
    installed; baseline: a bare TCP echo of the same request bytes (thread + loopback cost only).
 2. RSI: :class:`~robot_io.rsi_sim.RsiSimController` at 4 ms and 12 ms against
-   :class:`~robot_io.rsi.RsiServer`: round trip (``<Rob>`` sent → valid ``<Sen>`` received), the
-   server's own receive-to-reply time, and late cycles; baseline: a bare UDP echo ping-pong of the same
-   telegram.
+   :class:`~robot_io.rsi.RsiServer`: round trip (``<Rob>`` sent → its ``<Sen>`` received, replies
+   after the deadline included), the server's own receive-to-reply time, and late cycles (no reply by
+   the end of the cycle; "never answered" = no reply at all); baseline: a bare UDP echo ping-pong of
+   the same telegram.
 
 Worst case and p99 are what count for an online link (the controller cycle is 4 ms or 12 ms); the
 ratios are against the bare echo measured in the same run. The peer (simulated controller, echo)
@@ -85,7 +86,7 @@ def _rsi_controller_proc(addr: tuple[str, int], cycle: float, cycles: int, pipe)
     with sim:
         sim.wait(cycles * cycle * 3 + 5)
     pipe.send({"stats": dataclasses.asdict(sim.stats), "round_trips": sim.round_trips(),
-               "status": sim.status})
+               "late_round_trips": sim.late_round_trips(), "status": sim.status})
 
 
 class _Child:
@@ -207,7 +208,8 @@ def rsi_latency(seconds: float = 4.0) -> dict:
             if res["status"] != "done" or not res["round_trips"]:
                 raise RuntimeError(f"RSI run did not complete: {res['status']}")
             out[f"{cycle * 1e3:.0f} ms"] = {
-                "round_trip": _summary(res["round_trips"]), "server_reply": _summary(srv.reply_times()),
+                "round_trip": _summary(res["round_trips"] + res["late_round_trips"]),
+                "server_reply": _summary(srv.reply_times()),
                 "cycles": st["cycles"], "late": st["late"], "stale": st["stale"],
                 "wrong_ipoc": st["wrong_ipoc"], "malformed": st["malformed"] + ss.malformed,
                 "sender_overruns": st["overruns"], "cycle_ms": cycle * 1e3}
@@ -218,7 +220,7 @@ def markdown(res: dict) -> str:
     """The results as Markdown tables."""
     k, r = res["kvp"], res["rsi"]
     base = k["baseline_tcp_echo"]
-    lines = ["| KVP (TCP, loopback) | n | p50 | p99 | worst | p99 / echo p99 |",
+    lines = ["| KVP (TCP, loopback) | n | p50 | p99 | worst | p50 / echo p50 |",
              "|---|---:|---:|---:|---:|---:|"]
     for name, s in k.items():
         if isinstance(s, str):
@@ -226,10 +228,11 @@ def markdown(res: dict) -> str:
             continue
         label = "bare TCP echo (baseline)" if name == "baseline_tcp_echo" else name
         lines.append(f"| {label} | {s['n']} | {s['p50_ms']:.3f} ms | {s['p99_ms']:.3f} ms | "
-                     f"{s['max_ms']:.3f} ms | {s['p99_ms'] / base['p99_ms']:.1f}× |")
+                     f"{s['max_ms']:.3f} ms | {s['p50_ms'] / base['p50_ms']:.1f}× |")
     ub = r["baseline_udp_echo"]
     lines += ["", "| RSI (UDP, loopback) | cycles | round trip p50 / p99 / worst | server reply p99 / worst "
-              "| late cycles | worst / cycle | p99 / echo p99 |", "|---|---:|---|---|---:|---:|---:|",
+              "| late cycles (never answered) | worst / cycle | p50 / echo p50 |",
+              "|---|---:|---|---|---:|---:|---:|",
               f"| bare UDP echo (baseline) | {ub['n']} | {ub['p50_ms']:.3f} / {ub['p99_ms']:.3f} / "
               f"{ub['max_ms']:.3f} ms | — | — | — | 1.0× |"]
     for name, s in r.items():
@@ -238,7 +241,8 @@ def markdown(res: dict) -> str:
         rt, sr = s["round_trip"], s["server_reply"]
         lines.append(f"| {name} cycle | {s['cycles']} | {rt['p50_ms']:.3f} / {rt['p99_ms']:.3f} / "
                      f"{rt['max_ms']:.3f} ms | {sr['p99_ms']:.3f} / {sr['max_ms']:.3f} ms | {s['late']} "
-                     f"| {rt['max_ms'] / s['cycle_ms']:.2f} | {rt['p99_ms'] / ub['p99_ms']:.1f}× |")
+                     f"({s['late'] - s['stale']}) | {rt['max_ms'] / s['cycle_ms']:.2f} | "
+                     f"{rt['p50_ms'] / ub['p50_ms']:.1f}× |")
     return "\n".join(lines)
 
 

@@ -104,10 +104,11 @@ class RsiSimController:
         self.max_cycles = max_cycles
         self.path = SimulatedPathSpeed(programmed_speed, tau, override_percent)
         self._ipoc = int(ipoc_start)
-        self._sent_ipocs: collections.deque[int] = collections.deque(maxlen=4096)
+        self._sent: collections.OrderedDict[int, float] = collections.OrderedDict()  # IPOC → send time
         self._lock = threading.Lock()
         self._stats = RsiSimStats()
         self._rtt: collections.deque[float] = collections.deque(maxlen=keep_round_trips)
+        self._late_rtt: collections.deque[float] = collections.deque(maxlen=keep_round_trips)
         self._status = "idle"
         self._stop = threading.Event()
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -170,9 +171,14 @@ class RsiSimController:
         return self.path.speed()
 
     def round_trips(self) -> list[float]:
-        """Send-to-valid-reply times of the kept cycles [s], oldest first."""
+        """Send-to-valid-reply times of the kept cycles answered in time [s], oldest first."""
         with self._lock:
             return list(self._rtt)
+
+    def late_round_trips(self) -> list[float]:
+        """Send-to-reply times of the replies that came after their cycle's deadline (stale) [s]."""
+        with self._lock:
+            return list(self._late_rtt)
 
     @property
     def local_address(self) -> tuple[str, int]:
@@ -202,7 +208,10 @@ class RsiSimController:
             _log.debug("rsi-sim: %s", e)
             return False
         if sen.ipoc != ipoc:
-            if sen.ipoc in self._sent_ipocs:
+            sent_at = self._sent.get(sen.ipoc)
+            if sen.ipoc != -1 and sent_at is not None:
+                with self._lock:
+                    self._late_rtt.append(t_recv - sent_at)
                 self._count(stale=1)
             else:
                 self._count(wrong_ipoc=1)
@@ -228,7 +237,7 @@ class RsiSimController:
                 except OSError:
                     return
                 if addr[:2] == self.server_addr:
-                    self._classify(data, -1, 0.0)
+                    self._classify(data, -1, 0.0, time.perf_counter())
         finally:
             self._sock.setblocking(True)
 
@@ -251,8 +260,10 @@ class RsiSimController:
                 return
             self._drain()
             ipoc = self._ipoc
-            self._sent_ipocs.append(ipoc)
             t_send = time.perf_counter()
+            self._sent[ipoc] = t_send
+            if len(self._sent) > 4096:
+                self._sent.popitem(last=False)
             if t_send - due > self.cycle_s:
                 self._count(overruns=1)
                 due = t_send

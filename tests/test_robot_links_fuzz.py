@@ -48,7 +48,8 @@ BILLION_LAUGHS = (b'<?xml version="1.0"?><!DOCTYPE Rob [<!ENTITY a "aaaaaaaaaa">
                   + b"]><Rob><OvPro>&i;</OvPro><IPOC>1</IPOC></Rob>")
 EXTERNAL_ENTITY = (b'<?xml version="1.0"?><!DOCTYPE Rob [<!ENTITY x SYSTEM "file:///etc/passwd">]>'
                    b"<Rob><OvPro>&x;</OvPro><IPOC>1</IPOC></Rob>")
-EXTERNAL_DTD = b'<?xml version="1.0"?><!DOCTYPE Rob SYSTEM "http://127.0.0.1:9/x.dtd"><Rob><IPOC>1</IPOC></Rob>'
+EXTERNAL_DTD = (b'<?xml version="1.0"?><!DOCTYPE Rob SYSTEM "http://127.0.0.1:9/x.dtd">'
+                b"<Rob><IPOC>1</IPOC></Rob>")
 PARAMETER_ENTITY = (b'<?xml version="1.0"?><!DOCTYPE Rob [<!ENTITY % p SYSTEM "file:///etc/passwd"> %p;]>'
                     b"<Rob><IPOC>1</IPOC></Rob>")
 UNDECLARED_ENTITY = b"<Rob><OvPro>&lol;</OvPro><IPOC>1</IPOC></Rob>"
