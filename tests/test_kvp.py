@@ -10,6 +10,7 @@ import threading
 import time
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from robot_io.kvp import (
@@ -183,6 +184,33 @@ def test_sim_server_override_drives_the_path_speed():
         assert wait_for(lambda: abs(srv.path_speed() - 1e-3) < 1e-6)
         assert conn.read("$OV_PRO") == "50"
         assert conn.ping()
+
+
+def test_simulated_path_speed_is_a_first_order_lag_in_closed_form():
+    from robot_io._sim_speed import SimulatedPathSpeed
+
+    now = [0.0]
+    path = SimulatedPathSpeed(programmed_speed=2e-3, tau=0.05, clock=lambda: now[0])
+    now[0] = 1.0
+    assert path.speed() == pytest.approx(2e-3) and path.position() == pytest.approx(2e-3)
+    path.set_override(50)
+    now[0] = 1.05  # one time constant later: 1 - 1/e of the step done
+    assert path.speed() == pytest.approx(1e-3 + 1e-3 * math.exp(-1.0))
+    # position = integral of the speed: numeric check of the closed form
+    ts = np.linspace(1.0, 1.05, 20001)
+    v = 1e-3 + 1e-3 * np.exp(-(ts - 1.0) / 0.05)
+    assert path.position() == pytest.approx(2e-3 + float(np.sum((v[1:] + v[:-1]) / 2 * np.diff(ts))),
+                                            rel=1e-9)
+    now[0] = 3.0
+    assert path.speed() == pytest.approx(1e-3, rel=1e-12)
+
+
+def test_client_counts_slow_replies_as_late():
+    with KvpSimServer(reply_delay_s=0.03) as srv, KvpClient(*srv.address, timeout=0.5, late_s=0.01) as link:
+        assert link.wait_connected()
+        assert link.set_override(20).ok and link.flush(3.0)
+        st = link.stats
+        assert st.late == st.replies >= 2 and st.timeouts == 0
 
 
 def test_sim_server_refuses_clients_beyond_the_limit():
