@@ -117,7 +117,9 @@ class _Run:
     def run(self, text: str, plain: bool = True) -> Toolpath:
         lines = text.split("\n")
         nlines = len(lines)
-        scan = scan_plain_lines(text, nlines) if plain else None
+        # the bulk path needs runs of MIN_RUN lines and no rotary kinematics (see _gcode_plain)
+        bulk = plain and nlines >= MIN_RUN and self.kin is None
+        scan = scan_plain_lines(text, nlines, MIN_RUN) if bulk else None
         done = 0
         for a, b in ([] if scan is None else plain_spans(scan, MIN_RUN)):
             for i in range(done, a):
@@ -249,7 +251,7 @@ class _Run:
                              "this line; add ')'", skip="unclosed_comment")
             else:
                 col = m.start(6) + 1
-                self.problem(col, "malformed_word", _garbage_reason(u, col),
+                self.problem(col, "malformed_word", W.garbage_reason(u, col),
                              skip="malformed_block")
                 return None
         return words, codes, col0
@@ -577,29 +579,6 @@ class _Run:
         return Toolpath(file=self.file, format="gcode",
                         units=self.units or self.opts.default_units, moves=self.store.finish(),
                         warnings=self.warnings, skipped=self.skipped, meta=self.meta)
-
-
-def _garbage_reason(u: str, col: int) -> str:
-    """Why the text at ``col`` (1-based) is not a word, and what to do."""
-    ch = u[col - 1]
-    snippet = u[col - 1:col + 11].rstrip()
-    if u.lstrip()[:1] == "O" and "A" <= ch <= "Z":
-        return (f"O-word subroutines and control flow ({snippet!r}) are not supported; let the "
-                "CAM post write the moves out")
-    if "A" <= ch <= "Z":
-        rest = u[col:col + 40].lstrip(" \t")
-        if rest[:1] in ("#", "["):
-            return (f"parameters and expressions ({snippet!r}) are not supported; let the CAM "
-                    "post write plain numbers")
-        if rest.lstrip("+-.").lstrip(" \t")[:1] in ("", ";", "("):
-            return (f"word {snippet!r} without a number (truncated word?); give it a number or "
-                    "remove it")
-        return (f"malformed number in {snippet!r}: one plain decimal number per word, e.g. "
-                f"{ch}1.25 (no exponents, NaN/inf or repeated points)")
-    if ch in "#[":
-        return (f"parameters and expressions ({snippet!r}) are not supported; let the CAM post "
-                "write plain numbers")
-    return f"unexpected character {ch!r} in {snippet!r}; remove it"
 
 
 def _frozen(v: Any) -> np.ndarray:

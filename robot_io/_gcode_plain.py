@@ -36,7 +36,7 @@ from robot_io._gcode_moves import START_PREVIOUS, START_UNKNOWN
 if TYPE_CHECKING:
     from robot_io._gcode_interp import _Run
 
-__all__ = ["MAX_NUMBER_CHARS", "MIN_RUN", "PlainLines", "execute_plain", "plain_spans",
+__all__ = ["MAX_NUMBER_CHARS", "MIN_RUN", "MIN_SHARE", "PlainLines", "execute_plain", "plain_spans",
            "scan_plain_lines"]
 
 #: Longest number (characters, sign and point included) the scan reads; longer ones are left to
@@ -45,6 +45,11 @@ MAX_NUMBER_CHARS = 17
 #: Shortest run of plain lines executed in bulk: below it the fixed cost of the array operations
 #: (~50 µs) exceeds what the interpreter needs for the lines (~5–10 µs each).
 MIN_RUN = 16
+
+#: Smallest share of a program's lines in such runs for the numbers to be read in bulk at all:
+#: below it (a program of arcs or 5-axis words with the odd plain stretch) the scan would cost
+#: more than it saves.
+MIN_SHARE = 0.1
 
 # byte classes
 _BAD, _DIGIT, _DOT, _SIGN, _BLANK, _LETTER, _CR, _NL = range(8)
@@ -88,9 +93,9 @@ class PlainLines:
     nonblank: np.ndarray
 
 
-def scan_plain_lines(text: str, n_lines: int) -> PlainLines | None:
+def scan_plain_lines(text: str, n_lines: int, min_run: int = MIN_RUN) -> PlainLines | None:
     """Classify and read the lines of ``text`` (split at ``"\\n"`` into ``n_lines`` lines);
-    ``None`` when no line is plain."""
+    ``None`` when there is no run of ``min_run`` plain lines (the numbers are then not read)."""
     data = text.encode("ascii", "replace")   # one byte per character: columns stay right
     b = np.frombuffer(data, np.uint8)
     n = b.size
@@ -135,6 +140,10 @@ def scan_plain_lines(text: str, n_lines: int) -> PlainLines | None:
     first = np.concatenate(([True], ~same))
     last = np.concatenate((~same, [True]))
     bad.append(tok[(first & ~tok_letter) | (last & tok_letter)])
+    ok = np.ones(n_lines, bool)
+    ok[line_of[np.concatenate(bad)]] = False
+    if not _has_run(ok, min_run):   # not worth reading the numbers
+        return None
     # the numbers: blank out everything else (bad numbers become "0" to keep the count)
     keep = np.where(is_num, b, np.uint8(32))
     if not good_run.all():
@@ -184,21 +193,31 @@ def scan_plain_lines(text: str, n_lines: int) -> PlainLines | None:
     has_axis[axis_line] = True
     nonblank = np.zeros(n_l, bool)
     nonblank[tok_line] = True
-    ok = np.ones(n_l, bool)
     ok[line_of[np.concatenate(bad)]] = False
-    if not ok.any():
+    if not _has_run(ok, min_run):
         return None
     return PlainLines(ok=ok, x=out["X"], y=out["Y"], z=out["Z"], f=out["F"], g=out["G"],
                       col0=col0, has_axis=has_axis, nonblank=nonblank)
 
 
-def plain_spans(scan: PlainLines, min_run: int) -> list[tuple[int, int]]:
-    """Runs ``[a, b)`` of at least ``min_run`` consecutive plain lines (0-based line indices)."""
-    edges = np.diff(np.concatenate(([0], scan.ok.view(np.int8), [0])))
+def _runs(ok: np.ndarray, min_run: int) -> tuple[np.ndarray, np.ndarray]:
+    edges = np.diff(np.concatenate(([0], ok.view(np.int8), [0])))
     starts = np.flatnonzero(edges == 1)
     stops = np.flatnonzero(edges == -1)
     long = stops - starts >= min_run
-    return list(zip(starts[long].tolist(), stops[long].tolist(), strict=True))
+    return starts[long], stops[long]
+
+
+def _has_run(ok: np.ndarray, min_run: int) -> bool:
+    """Worth the bulk path: runs of ``min_run`` lines cover :data:`MIN_SHARE` of the lines."""
+    starts, stops = _runs(ok, min_run)
+    return int((stops - starts).sum()) >= MIN_SHARE * ok.size and starts.size > 0
+
+
+def plain_spans(scan: PlainLines, min_run: int = MIN_RUN) -> list[tuple[int, int]]:
+    """Runs ``[a, b)`` of at least ``min_run`` consecutive plain lines (0-based line indices)."""
+    starts, stops = _runs(scan.ok, min_run)
+    return list(zip(starts.tolist(), stops.tolist(), strict=True))
 
 
 def _ffill(v: np.ndarray, initial: float) -> np.ndarray:

@@ -35,6 +35,7 @@ __all__ = [
     "WORK_OFFSETS_G",
     "code_key",
     "code_name",
+    "garbage_reason",
     "upper",
 ]
 
@@ -86,6 +87,29 @@ def code_key(number: str) -> int | None:
     if abs(v - k) > 1e-6 or k < 0:
         return None
     return int(k)
+
+
+def garbage_reason(u: str, col: int) -> str:
+    """Why the text at ``col`` (1-based) is not a word, and what to do."""
+    ch = u[col - 1]
+    snippet = u[col - 1:col + 11].rstrip()
+    if u.lstrip()[:1] == "O" and "A" <= ch <= "Z":
+        return (f"O-word subroutines and control flow ({snippet!r}) are not supported; let the "
+                "CAM post write the moves out")
+    if "A" <= ch <= "Z":
+        rest = u[col:col + 40].lstrip(" \t")
+        if rest[:1] in ("#", "["):
+            return (f"parameters and expressions ({snippet!r}) are not supported; let the CAM "
+                    "post write plain numbers")
+        if rest.lstrip("+-.").lstrip(" \t")[:1] in ("", ";", "("):
+            return (f"word {snippet!r} without a number (truncated word?); give it a number or "
+                    "remove it")
+        return (f"malformed number in {snippet!r}: one plain decimal number per word, e.g. "
+                f"{ch}1.25 (no exponents, NaN/inf or repeated points)")
+    if ch in "#[":
+        return (f"parameters and expressions ({snippet!r}) are not supported; let the CAM post "
+                "write plain numbers")
+    return f"unexpected character {ch!r} in {snippet!r}; remove it"
 
 
 def code_name(letter: str, key: int) -> str:

@@ -247,6 +247,19 @@ def test_ten_megabyte_lines_are_linear() -> None:
     np.testing.assert_allclose(tp.moves[-1].end, [1 * MM, 2 * MM, 3 * MM])
 
 
+def test_ten_megabytes_of_short_lines_are_linear() -> None:
+    # the bulk scan works on the whole text at once: many lines, long numbers, long comments
+    body = ("X" + "1" * 300 + ".5\n" + "(" + "c" * 300 + ")\n" + "G1 X1.5 Y2 Z-3\n" * 20) * 10_000
+    t0 = time.perf_counter()
+    tp = read_gcode_text(PRE + body, strict=False)
+    assert time.perf_counter() - t0 < 5.0
+    assert len(tp.moves) == 1 + 200_000 and tp.skipped == {"malformed_block": 10_000}
+    t0 = time.perf_counter()
+    with pytest.raises(ToolpathError, match=r"^<string>:3:1: X1+ is out of range"):
+        read_gcode_text(PRE + body)
+    assert time.perf_counter() - t0 < 5.0
+
+
 FUZZ_PROGRAM = """%
 O0042 (FUZZ)
 G21 G90 G17 G94 (comment) ; tail
@@ -581,26 +594,33 @@ def _assert_same_reading(fast, ref) -> None:
     assert _same(fast.meta, ref.meta) and fast.units == ref.units
 
 
-@pytest.mark.parametrize("name", sorted(SHARED))
-def test_bulk_path_reads_the_shared_programs_like_the_interpreter(
-        name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.fixture
+def bulk_lines(monkeypatch: pytest.MonkeyPatch) -> dict[str, int]:
+    """Counts the lines the bulk path executes (``["lines"]``) and the reads that used it."""
     from robot_io import _gcode_interp
 
-    text = _data(name).read_text()
-    bulk = {"lines": 0}
+    count = {"lines": 0, "calls": 0}
     real = _gcode_interp.execute_plain
 
     def counting(run, scan, a, b):
         c = real(run, scan, a, b)
-        bulk["lines"] += c - a
+        count["lines"] += c - a
+        count["calls"] += c > a
         return c
 
     monkeypatch.setattr(_gcode_interp, "execute_plain", counting)
+    return count
+
+
+@pytest.mark.parametrize("name", sorted(SHARED))
+def test_bulk_path_reads_the_shared_programs_like_the_interpreter(
+        name: str, bulk_lines: dict[str, int]) -> None:
+    text = _data(name).read_text()
     for strict in (True, False):
         fast, ref = _read_both_ways(text, strict, **SHARED[name]["kw"])
         _assert_same_reading(fast, ref)
     # the 3-axis CAM programs are almost all plain lines and go through the bulk path
-    share = bulk["lines"] / 2 / (text.count("\n") + 1)
+    share = bulk_lines["lines"] / 2 / (text.count("\n") + 1)
     if name.startswith("camotics_"):
         assert share > 0.99
     elif "5ax" in name:
@@ -641,7 +661,8 @@ def _plain_program(rng: np.random.Generator) -> str:
     return ("\r\n" if rng.random() < 0.15 else "\n").join(lines)
 
 
-def test_bulk_path_matches_the_interpreter_on_random_programs(rng: np.random.Generator) -> None:
+def test_bulk_path_matches_the_interpreter_on_random_programs(
+        rng: np.random.Generator, bulk_lines: dict[str, int]) -> None:
     alphabet = b"0123456789.+-XYZIJKRFGMPABCN ()%;/#\n\t\r\x00\xff\xe9xyzfgn"
     outcomes = {"ok": 0, "error": 0}
     for case in range(160):
@@ -655,6 +676,7 @@ def test_bulk_path_matches_the_interpreter_on_random_programs(rng: np.random.Gen
             _assert_same_reading(fast, ref)
             outcomes["error" if isinstance(ref, str) else "ok"] += 1
     assert outcomes["ok"] > 100 and outcomes["error"] > 20
+    assert bulk_lines["calls"] > 100 and bulk_lines["lines"] > 3000   # the bulk path did run
 
 
 def test_move_list_reads_like_a_list() -> None:
