@@ -39,6 +39,7 @@ if str(ROOT) not in sys.path:
 from robot_io.kvp import FN_WRITE, KvpConnection, KvpRequest, pack_request  # noqa: E402
 from robot_io.kvp_sim import KvpSimServer  # noqa: E402
 from robot_io.rsi import RsiServer, build_rob  # noqa: E402
+from robot_io.rsi_process import RsiProcessServer  # noqa: E402
 from robot_io.rsi_sim import RsiSimController  # noqa: E402
 
 CYCLES_S = (0.004, 0.012)
@@ -197,17 +198,20 @@ def rsi_latency(seconds: float = 4.0) -> dict:
         out["baseline_udp_echo"] = _summary(times)
     finally:
         echo.close()
-    runs = [(f"{c * 1e3:.0f} ms", c, None) for c in CYCLES_S]
+    runs = [(f"{c * 1e3:.0f} ms", c, None, False) for c in CYCLES_S]
     # The supervisor shares the server's process: a CPU-bound Python thread beside the server holds
     # the GIL for up to sys.getswitchinterval() (5 ms by default) at a time.
-    runs += [("4 ms, CPU-bound thread beside the server (switch interval 5 ms)", 0.004, 0.005),
-             ("4 ms, CPU-bound thread beside the server (switch interval 0.5 ms)", 0.004, 0.0005)]
-    for name, cycle, switch in runs:
-        out[name] = _rsi_run(cycle, seconds, switch)
+    # RsiProcessServer moves the server out of the caller's process.
+    runs += [("4 ms, CPU-bound thread beside the server (switch interval 5 ms)", 0.004, 0.005, False),
+             ("4 ms, CPU-bound thread beside the server (switch interval 0.5 ms)", 0.004, 0.0005, False),
+             ("4 ms, CPU-bound thread in the caller, RsiProcessServer (switch interval 5 ms)", 0.004,
+              0.005, True)]
+    for name, cycle, switch, process in runs:
+        out[name] = _rsi_run(cycle, seconds, switch, process)
     return out
 
 
-def _rsi_run(cycle: float, seconds: float, switch_interval: float | None) -> dict:
+def _rsi_run(cycle: float, seconds: float, switch_interval: float | None, process: bool) -> dict:
     stop = threading.Event()
     busy = None
     old_switch = sys.getswitchinterval()
@@ -222,7 +226,8 @@ def _rsi_run(cycle: float, seconds: float, switch_interval: float | None) -> dic
         busy = threading.Thread(target=spin, daemon=True)
         busy.start()
     try:
-        with RsiServer(reply_budget_s=cycle / 2) as srv:
+        server = RsiProcessServer if process else RsiServer
+        with server(reply_budget_s=cycle / 2) as srv:
             cycles = int(seconds / cycle)
             ctl = _Child(_rsi_controller_proc, srv.address, cycle, cycles)
             try:

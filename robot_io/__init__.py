@@ -20,6 +20,7 @@ from robot_io.kvp_sim import KvpSimServer
 from robot_io.readers import FORMATS, detect_format, read_toolpath
 from robot_io.robot_link import LinkError, LinkStats, LinkStatus, ProtocolError, RobotLink
 from robot_io.rsi import RsiServer
+from robot_io.rsi_process import RsiProcessServer
 from robot_io.rsi_sim import RsiSimController
 from robot_io.signal_replay import ReplaySource, SignalFileError, load_signal
 from robot_io.signal_source import SignalChunk, SignalSource, SourceStats
@@ -57,6 +58,7 @@ __all__ = [
     "ProtocolError",
     "ReplaySource",
     "RobotLink",
+    "RsiProcessServer",
     "RsiServer",
     "RsiSimController",
     "SignalChunk",

@@ -407,6 +407,12 @@ class RsiServer:
         with self._lock:
             return self._last_rob
 
+    @property
+    def last_receive_time(self) -> float:
+        """``time.monotonic()`` of the last valid ``<Rob>`` (−inf before the first) [s]."""
+        with self._lock:
+            return self._last_rx
+
     def reply_times(self) -> list[float]:
         """Time from a telegram's arrival to its reply being handed to the socket (parse, checks,
         build) for the kept replies [s], oldest first; the full round trip is measured by the peer."""
@@ -433,6 +439,11 @@ class RsiServer:
                 _log.exception("rsi server: unexpected error")
                 self._stats.add(malformed=1, error=f"unexpected {type(e).__name__}: {e}")
 
+    def _wanted_override(self) -> int | None:
+        """The override to send, ``None`` before any ``set_override`` (hook for
+        :class:`robot_io.rsi_process.RsiProcessServer`, which keeps it in shared memory)."""
+        return self._override
+
     def _check_timeout(self) -> None:
         with self._lock:
             lost = self._up and time.monotonic() - self._last_rx >= self.link_timeout_s
@@ -455,7 +466,7 @@ class RsiServer:
             return
         with self._lock:
             prev = self._last_rob
-            value = self._override
+            value = self._wanted_override()
             if value is None:
                 value = override_to_int(rob.ov_pro) if rob.ov_pro is not None else self._initial
         dat = rob.dat if self.dat is None else self.dat

@@ -316,3 +316,30 @@ def test_cli_robot_sim_rsi_reports_rsibad(capsys):
                    "--duration-s", "5"])
     assert rc == 1
     assert "RSIBad" in capsys.readouterr().out
+
+
+# -- the server in its own process -------------------------------------------------------------------------
+
+def test_process_server_serves_the_controller_through_shared_memory():
+    from robot_io.rsi_process import SYNC_PERIOD_S, RsiProcessServer
+
+    with RsiProcessServer() as srv:
+        assert isinstance(srv, RobotLink)
+        assert not srv.connected and srv.read_override() is None
+        assert not srv.set_override(math.nan).ok
+        status = srv.set_override(44.4)
+        assert not status.ok and status.percent == 44  # kept for the first reply
+        with RsiSimController(srv.address, max_cycles=40, short_first_packet=True) as sim:
+            assert wait_for(lambda: srv.connected)
+            assert sim.wait(WAIT_S)
+        assert wait_for(lambda: srv.stats.replies == 40, 10 * SYNC_PERIOD_S + 1.0)
+        st = srv.stats
+        assert (st.sent, st.malformed, st.timeouts) == (40, 0, 0)
+        assert sim.override_percent == 44.0 and sim.stats.wrong_ipoc == 0
+        assert srv.short_first_dropped == 1
+        assert wait_for(lambda: srv.read_override() == 44.0)
+        assert srv.last_telegram.ipoc == 1_000_000 + 39 * 4
+        assert len(srv.reply_times()) == 40
+        with pytest.raises(LinkError, match="cannot bind"):
+            RsiProcessServer(port=srv.address[1])
+    assert not srv.set_override(50).ok  # closed
