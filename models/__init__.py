@@ -1,5 +1,6 @@
 """cctmill physics: robot kinematics and inertia, stiffness (conventional and CCT), cutting forces,
-mode-coupling chatter. No file or network I/O beyond reading the shipped data files.
+mode-coupling chatter, the time-domain milling simulation and its Floquet criterion, static
+deflection and compensation. No file or network I/O beyond reading the shipped data files.
 
 Everything symbolic is CasADi; :func:`point_function` is the one Function the planner maps along a
 path, :class:`PointModel` its numeric face.
@@ -24,6 +25,8 @@ from models.cutting import (
     load_material,
     load_tool,
 )
+from models.deflection import compensate, estimate_radial_depth, path_deflection
+from models.dynamics import SimulationResult, Structure, pose_structure, simulate
 from models.errors import (
     CctmillError,
     DataFileError,
@@ -32,6 +35,7 @@ from models.errors import (
     UnknownDataError,
     UnreachablePoseError,
 )
+from models.floquet import FloquetResult, floquet, floquet_margin, path_floquet
 from models.point import CRITERIA, PointAnalysis, PointModel, StabilityCharacteristic
 from models.robot import DEFAULT_ROBOT, Robot, RobotData, available_robots, load_robot
 
@@ -47,6 +51,7 @@ __all__ = [
     "CctmillError",
     "Cut",
     "DataFileError",
+    "FloquetResult",
     "InputError",
     "Material",
     "ModelParameters",
@@ -54,16 +59,26 @@ __all__ = [
     "PointModel",
     "Robot",
     "RobotData",
+    "SimulationResult",
     "SingularPoseError",
     "StabilityCharacteristic",
+    "Structure",
     "Tool",
     "UnknownDataError",
     "UnreachablePoseError",
     "available_materials",
     "available_robots",
     "available_tools",
+    "compensate",
+    "estimate_radial_depth",
+    "floquet",
+    "floquet_margin",
     "load_material",
     "load_robot",
     "load_tool",
+    "path_deflection",
+    "path_floquet",
     "point_function",
+    "pose_structure",
+    "simulate",
 ]

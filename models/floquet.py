@@ -30,14 +30,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from models.analysis import Cut
+from models import cutting
+from models.analysis import Cut, ModelParameters, point_function
 from models.dynamics import (
+    DEFAULT_DAMPING_RATIO,
     DEFAULT_SLICES,
     Structure,
+    _tcp_mass_function,
     cutter_geometry,
+    modal_damping,
     process_stiffness_series,
 )
 from models.errors import InputError
+from models.robot import Robot
 
 __all__ = [
     "DEFAULT_FLOQUET_STEPS",
@@ -46,6 +51,7 @@ __all__ = [
     "floquet_batch",
     "floquet_margin",
     "monodromy",
+    "path_floquet",
 ]
 
 #: Sub-steps per tooth period of the monodromy integration [-]; the spectral radius changes by
@@ -188,3 +194,51 @@ def floquet_margin(structures: list[Structure], cuts: list[Cut], coefficients, h
     res = floquet_batch(structures, cuts, coefficients, helix_angle, steps, slices)
     rho = np.array([r.spectral_radius for r in res])
     return rho, 1.0 - rho
+
+
+def _cut_from_vector(v: np.ndarray) -> Cut:
+    modes = {code: name for name, code in cutting.MILLING_MODES.items()}
+    mode = modes[int(round(float(v[8])))]
+    return Cut(v[0:3], v[3:6], float(v[6]), float(v[7]), mode, float(v[9]), int(round(v[10])),
+               float(v[11]))
+
+
+def path_floquet(robot: Robot, params: ModelParameters, q: np.ndarray, cuts: np.ndarray,
+                 feeds: np.ndarray, helix_angle: float,
+                 damping_ratio: float = DEFAULT_DAMPING_RATIO,
+                 steps: int = DEFAULT_FLOQUET_STEPS,
+                 slices: int = DEFAULT_SLICES) -> tuple[np.ndarray, np.ndarray]:
+    """Floquet (ρ, margin 1 − ρ) at every path sample, shape (n,) each — the planner's form.
+
+    The stiffness (CCT under each sample's mean force) and the Cartesian mass are evaluated with
+    mapped CasADi Functions, the monodromy matrices in one batch.
+
+    Args:
+        q: joints [rad], shape (n, nq).
+        cuts: ``Cut.vector()`` rows, shape (n, 12) (directions in base axes).
+        feeds: [m/s], shape (n,).
+        helix_angle: [rad]; damping_ratio: ζ of both modes.
+    """
+    q = np.atleast_2d(np.asarray(q, float))
+    cuts = np.atleast_2d(np.asarray(cuts, float))
+    feeds = np.asarray(feeds, float).reshape(-1)
+    n = q.shape[0]
+    if cuts.shape != (n, 12) or feeds.shape != (n,):
+        raise InputError("path", f"need q (n, nq), cuts (n, 12), feeds (n,); got {q.shape}, "
+                         f"{cuts.shape}, {feeds.shape}")
+    k_fun = point_function(robot, "oriented", "isotropic", outputs=("stiffness",)).map(n)
+    k_t = np.asarray(k_fun(q.T, cuts.T, feeds.reshape(1, -1), params.vector()), float)
+    m_fun = _tcp_mass_function(robot).map(n)
+    lam = np.asarray(m_fun(q.T, np.asarray(params.tcp, float), params.spindle_mass,
+                           np.asarray(params.spindle_com, float)), float)
+    structures, cut_list = [], []
+    for i in range(n):
+        cut = _cut_from_vector(cuts[i])
+        plane = np.column_stack([cut.radial_dir, cut.feed_dir])
+        k2 = plane.T @ k_t[:, 3 * i:3 * i + 3] @ plane
+        m2 = plane.T @ lam[:, 3 * i:3 * i + 3] @ plane
+        k2, m2 = 0.5 * (k2 + k2.T), 0.5 * (m2 + m2.T)
+        structures.append(Structure(m2, k2, modal_damping(m2, k2, damping_ratio), plane,
+                                    damping_ratio))
+        cut_list.append(cut)
+    return floquet_margin(structures, cut_list, params.coefficients, helix_angle, steps, slices)

@@ -12,7 +12,7 @@ import pytest
 
 from models import Cut, load_material, load_tool
 from models.dynamics import Structure, modal_damping
-from models.floquet import floquet, floquet_margin
+from models.floquet import floquet, floquet_margin, path_floquet
 import _dynamics_cases as cases
 
 MAT = load_material("al6061")
@@ -115,4 +115,17 @@ def test_floquet_margin_batch_matches_single():
     rho, margin = floquet_margin([st] * 3, cuts, MAT, TOOL.helix_angle)
     singles = [floquet(st, c, MAT, TOOL.helix_angle).spectral_radius for c in cuts]
     np.testing.assert_allclose(rho, singles, rtol=1e-12)
+    np.testing.assert_allclose(margin, 1 - rho)
+
+
+def test_path_floquet_matches_the_per_point_structure():
+    robot, material, tool, params = cases._setup()
+    picked = cases.candidates(4, [1000.0, 4000.0], seed=11)
+    q = np.array([c.q for c in picked])
+    vecs = np.array([c.cut.vector() for c in picked])
+    feeds = np.array([c.feed for c in picked])
+    rho, margin = path_floquet(robot, params, q, vecs, feeds, tool.helix_angle)
+    expected = [np.exp(c.floquet_growth * 2 * np.pi / (c.cut.flutes * c.cut.spindle_speed))
+                for c in picked]
+    np.testing.assert_allclose(rho, expected, rtol=1e-9)
     np.testing.assert_allclose(margin, 1 - rho)
