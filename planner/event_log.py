@@ -2,9 +2,14 @@
 
 Each line holds at least ``t_s`` (supervisor clock [s]), ``section``, ``band`` (largest |detail| of
 the step, or null), ``ucl`` (the control limit in force), ``override`` [percent], ``status`` and
-``reason`` (in words). Writing happens on a background thread, so a slow disk never stretches a
-supervisor step: :meth:`EventLog.write` only queues the record (a full queue drops it and counts it
-in ``dropped``). The file is opened line-buffered and appended to.
+``reason`` (in words). The file is opened line-buffered and appended to.
+
+Writing is split in two so that a supervisor step never waits for a disk: :meth:`EventLog.write`
+(called inside the step) only appends the record to a bounded in-memory list; :meth:`EventLog.drain`
+serialises and writes what is pending, and the loop calls it after the step, in the rest of the
+cycle. (A writer thread was tried first: waking it from the step hands the GIL over and stretched
+deterministic steps to the 5 ms switch interval — see ``benchmarks/supervisor_latency.py``.) A full
+list drops new records and counts them in ``dropped``.
 """
 
 from __future__ import annotations
@@ -12,14 +17,12 @@ from __future__ import annotations
 import json
 import math
 import os
-import queue
-import threading
 from typing import Any
 
 __all__ = ["EventLog"]
 
-#: Records queued at most before new ones are dropped (and counted).
-QUEUE_RECORDS = 100_000
+#: Records held between drains at most; later ones are dropped (and counted).
+PENDING_RECORDS = 100_000
 
 
 def _clean(v: Any) -> Any:
@@ -33,7 +36,7 @@ class EventLog:
 
     Attributes:
         records: the last records written (in-memory copy, bounded to ``keep``), newest last.
-        dropped: records lost because the queue was full.
+        dropped: records lost because too many were pending, or could not be written.
     """
 
     def __init__(self, path: str | os.PathLike | None = None, keep: int = 10_000) -> None:
@@ -41,47 +44,38 @@ class EventLog:
         self.records: list[dict[str, Any]] = []
         self.dropped = 0
         self._keep = keep
-        self._q: queue.Queue[dict[str, Any] | None] = queue.Queue(QUEUE_RECORDS)
+        self._pending: list[dict[str, Any]] = []
         self._fh = (open(path, "a", buffering=1, encoding="utf-8")  # noqa: SIM115
                     if path is not None else None)
-        self._thread = threading.Thread(target=self._run, name="cctmill-event-log", daemon=True)
-        self._thread.start()
 
     def write(self, record: dict[str, Any]) -> None:
-        """Queue one record; never blocks, never raises."""
-        try:
-            self._q.put_nowait(record)
-        except queue.Full:
+        """Queue one record (O(1), no I/O); never raises."""
+        if len(self._pending) >= PENDING_RECORDS:
             self.dropped += 1
+            return
+        self._pending.append(record)
 
-    def _run(self) -> None:
-        while True:
-            rec = self._q.get()
-            if rec is None:
-                return
-            if "__flush__" in rec:
-                rec["__flush__"].set()
-                continue
-            self.records.append(rec)
-            if len(self.records) > self._keep:
-                del self.records[: len(self.records) - self._keep]
+    def drain(self) -> int:
+        """Write the pending records; return how many. Never raises."""
+        pending, self._pending = self._pending, []
+        for rec in pending:
             if self._fh is not None:
                 try:
                     self._fh.write(json.dumps({k: _clean(v) for k, v in rec.items()}) + "\n")
                 except (OSError, TypeError, ValueError):
                     self.dropped += 1
+        self.records.extend(pending)
+        if len(self.records) > self._keep:
+            del self.records[: len(self.records) - self._keep]
+        return len(pending)
 
     def flush(self) -> None:
-        """Wait until every queued record is written."""
-        done = threading.Event()
-        self._q.put({"__flush__": done})
-        done.wait(5.0)
+        """Write everything pending."""
+        self.drain()
 
     def close(self) -> None:
-        """Write what is queued and close the file; idempotent."""
-        if self._thread.is_alive():
-            self._q.put(None)
-            self._thread.join(10.0)
+        """Write what is pending and close the file; idempotent."""
+        self.drain()
         if self._fh is not None:
             self._fh.close()
             self._fh = None

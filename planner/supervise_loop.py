@@ -6,9 +6,11 @@ wall time, the sockets staying real). Each iteration:
 
 1. ``before_step(now)`` (the simulated cut's DAQ: generate and send samples), if given;
 2. ``source.read`` → chunk; ``link.read_override()`` → the override the controller confirmed;
-3. :meth:`Supervisor.step` (its duration is the *step latency*, measured with ``perf_counter``);
+3. :meth:`Supervisor.step` (its duration is the *step latency*, measured with ``perf_counter``,
+   and its CPU time with ``thread_time``);
 4. ``link.set_override`` when the integer override changes, every ``keepalive_s``, and at once
-   when ``link.connected`` comes back after an outage.
+   when ``link.connected`` comes back after an outage;
+5. the decision log is drained to its file (after the step, so no step waits for the disk).
 
 Nothing here raises from inside the loop: a source or link that throws (they should not) is
 counted and treated as "no samples" / "link down". Link transitions (down, back) are logged in
@@ -52,7 +54,10 @@ class LoopReport:
     Attributes:
         steps: loop iterations.
         duration_s: loop time covered [s] (on the loop's clock).
-        step_latency_s: duration of each Supervisor.step [s] (perf_counter), shape (steps,).
+        step_latency_s: duration of each Supervisor.step [s] (perf_counter: wall time, including
+            any preemption by other processes), shape (steps,).
+        step_cpu_s: CPU time of this thread in each step [s] (``time.thread_time``: the step's own
+            cost, without preemption), shape (steps,).
         cycle_latency_s: duration of each whole iteration's work (read, step, command) [s].
         overruns: iterations whose work took longer than the cycle.
         link_writes: set_override calls; link_failures: calls answered not ok.
@@ -65,6 +70,7 @@ class LoopReport:
     steps: int = 0
     duration_s: float = 0.0
     step_latency_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    step_cpu_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     cycle_latency_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     overruns: int = 0
     link_writes: int = 0
@@ -85,6 +91,7 @@ def run_loop(sup: Supervisor, source: SignalSource, link: RobotLink, duration_s:
     """Run the supervisor for ``duration_s`` [s] (see the module docstring); return the report."""
     n_max = int(math.ceil(duration_s / cycle_s)) + 1
     step_lat = np.zeros(n_max)
+    step_cpu = np.zeros(n_max)
     cyc_lat = np.zeros(n_max)
     rep = LoopReport()
     max_samples = max(1, int(8 * cycle_s * max(sup.fs_hz, 1.0)) + 64)
@@ -112,9 +119,11 @@ def run_loop(sup: Supervisor, source: SignalSource, link: RobotLink, duration_s:
             applied = link.read_override()
         except Exception:  # noqa: BLE001
             applied = None
+        c0 = time.thread_time()
         s0 = time.perf_counter()
         res = sup.step(now, chunk, applied)
         s1 = time.perf_counter()
+        step_cpu[k] = time.thread_time() - c0
         cmd = int(math.floor(res.override + 0.5))
         try:
             up = bool(link.connected)
@@ -145,6 +154,7 @@ def run_loop(sup: Supervisor, source: SignalSource, link: RobotLink, duration_s:
                            "reason": ("controller link down: " + why) if not up
                            else "controller link back: override resent"})
             link_ok = up
+        sup.log.drain()  # the decisions of this step go to disk now, outside the step
         w1 = time.perf_counter()
         step_lat[k] = s1 - s0
         cyc_lat[k] = w1 - w0
@@ -164,5 +174,6 @@ def run_loop(sup: Supervisor, source: SignalSource, link: RobotLink, duration_s:
     rep.steps = k
     rep.duration_s = clock() - t_start
     rep.step_latency_s = step_lat[:k]
+    rep.step_cpu_s = step_cpu[:k]
     rep.cycle_latency_s = cyc_lat[:k]
     return rep
