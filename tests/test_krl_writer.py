@@ -472,3 +472,18 @@ def test_a_page_of_circs_without_a_lin_is_refused() -> None:
         render_krl(KrlProgramSpec("ARCS", HOME, page_lines=100), _SEC, mv)
     out = render_krl(KrlProgramSpec("ARCS", HOME), _SEC, mv)     # fits one module: fine
     _lint_clean(out.files, "krc4")
+
+
+def test_joint_ptp_inside_a_section(tmp_path) -> None:
+    secs = [KrlSection(0.001), KrlSection(0.2, "rapid", "robot")]
+    mv = [KrlMove("LIN", (0, 0, 5, 0, 90, 0), 0), KrlMove("LIN", (10, 0, 5, 0, 90, 0), 0),
+          KrlMove("PTP", (5.0, -80.0, 100.0, 0.0, 60.0, 5.0), 1),
+          KrlMove("LIN", (20, 0, 50, 0, 90, 0), 1, approx=False)]
+    paths = write_krl(KrlProgramSpec("WITH_PTP", HOME), secs, mv, tmp_path)
+    _lint_clean({p.name: p.read_bytes() for p in paths}, "krc4")
+    src = paths[0].read_bytes().decode("ascii")
+    assert "PTP {A1 5.0000,A2 -80.0000,A3 100.0000,A4 0.0000,A5 60.0000,A6 5.0000}\r\n" in src
+    tp = read_krl(paths[0])
+    assert [m["axes_deg"] for m in tp.meta["joint_moves"] if m["axes_deg"]][-1]["A5"] == 60.0
+    _check_round_trip(paths[0], secs, mv)
+    assert tp.moves[-1].start is None            # after a joint move the start is not known
