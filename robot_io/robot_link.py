@@ -8,6 +8,9 @@ Two members implement :class:`RobotLink`, one file each:
 - :class:`robot_io.rsi.RsiServer` — RSI (UDP XML) server: the controller sends ``<Rob>`` every 4 ms or
   12 ms and the server replies inside the cycle with zero ``RKorr``, the echoed ``IPOC`` and the
   override channel.
+- :class:`robot_io.rsi_process.RsiProcessServer` — the same server in a child process: use it when
+  the calling process also computes (a CPU-bound thread holds the GIL for up to 5 ms at a time, longer
+  than the 4 ms cycle; ``benchmarks/link_latency.py`` measures it).
 
 Their simulated peers (:mod:`robot_io.kvp_sim`, :mod:`robot_io.rsi_sim`) speak the same bytes over
 loopback.
