@@ -8,7 +8,9 @@
   5 kHz (vs real time and a naive per-step loop), the demo path's static wall error with and
   without mirror compensation, and the wall a simulated cut leaves with and without it;
 - ``link_latency.py``: robot link latency over loopback (KVP write round trip, RSI reply time, worst
-  case and p99, against a bare echo and the 4 ms / 12 ms controller cycle).
+  case and p99, against a bare echo and the 4 ms / 12 ms controller cycle);
+- ``supervisor_latency.py``: supervisor step latency (worst case, p99) against the 4 ms / 12 ms
+  cycle, detection delay and closed-loop settling on the simulated cut against the thesis.
 
 The summary table is printed; ``out/benchmarks.md`` holds it followed by both full tables (the
 README's "Validation against the thesis" and "Performance" sections are pasted from there). The
@@ -32,6 +34,7 @@ for _p in (str(REPO), str(HERE)):
 
 import dynamics_speed  # noqa: E402
 import link_latency  # noqa: E402
+import supervisor_latency  # noqa: E402
 import thesis_figures  # noqa: E402
 import throughput  # noqa: E402
 import toolpath_speed  # noqa: E402
@@ -95,6 +98,8 @@ def main(argv: list[str] | None = None) -> str:
     links = link_latency.run()
     log("dynamic simulation speed and deflection compensation ...")
     dynamics_md = dynamics_speed.report()
+    log("online supervisor ...")
+    supervisor_md = supervisor_latency.markdown(supervisor_latency.run(log=log))
     head, sep, machine = summary(report, figures).partition("\n\nMachine:")
     table = head + "".join("\n| " + " | ".join(row) + " |" for row in link_latency.summary_rows(links)) \
         + sep + machine
@@ -108,6 +113,7 @@ def main(argv: list[str] | None = None) -> str:
         "## Robot link latency (benchmarks/link_latency.py)", link_latency.markdown(links),
         "## Dynamic simulation and deflection compensation (benchmarks/dynamics_speed.py)",
         dynamics_md,
+        "## Online supervisor (benchmarks/supervisor_latency.py)", supervisor_md,
         f"_Total wall time {time.perf_counter() - t0:.0f} s._",
     ]) + "\n"
     write_text_atomic(args.out, doc)
