@@ -180,7 +180,8 @@ class KrlMove:
         target: LIN/CIRC: the TCP end pose in ``$BASE`` (X, Y, Z [mm], A, B, C [deg]); PTP: the
             axis values A1..A6 [deg].
         section: index of the move's section in the ``sections`` list (moves of a section are
-            contiguous and sections come in list order).
+            contiguous and sections come in list order). The move's velocity is its section's
+            feed: a change of speed is a new section (with its own ``$VEL.CP`` and ``.dat`` value).
         aux: CIRC only: the auxiliary (via) pose, 6 values like ``target``.
         approx: ``C_DIS`` approximation (LIN/CIRC; PTPs are never approximated).
     """
@@ -488,8 +489,8 @@ def _header(comment: str, src: bool = True) -> list[str]:
     return lines
 
 
-def _preamble(spec: KrlProgramSpec, lim: ControllerLimits, compensated_note: list[str]) -> list[str]:
-    lines = [_comment(c) for c in spec.comments] + compensated_note
+def _preamble(spec: KrlProgramSpec, notes: list[str]) -> list[str]:
+    lines = [_comment(c) for c in spec.comments] + notes
     lines += [
         ";FOLD INI",
         "  ;FOLD BASISTECH INI",
@@ -594,7 +595,7 @@ def render_krl(spec: KrlProgramSpec, sections: Sequence[KrlSection],
     body = [line for s in secs for line in _section_lines(s, 0, len(s.body), False)]
     name = spec.name
     head = _header(f"cctmill {name}")
-    single = (head + [f"DEF {name}( )"] + _decls(spec, lim, ()) + _preamble(spec, lim, note_lines)
+    single = (head + [f"DEF {name}( )"] + _decls(spec, lim, ()) + _preamble(spec, note_lines)
               + body + _postamble(spec) + ["END"])
     files: dict[str, str] = {}
     page_names: tuple[str, ...] = ()
@@ -614,7 +615,7 @@ def render_krl(spec: KrlProgramSpec, sections: Sequence[KrlSection],
                        "shorter --name")
     page_names = tuple(f"{name}_{p:0{width}d}" for p in range(1, len(pages) + 1))
     main = (head + [f"DEF {name}( )"] + _decls(spec, lim, page_names)
-            + _preamble(spec, lim, note_lines)
+            + _preamble(spec, note_lines)
             + [f"{p}( ) ; page {i} of {len(pages)}" for i, p in enumerate(page_names, 1)]
             + _postamble(spec) + ["END"])
     if len(main) > limit:
