@@ -51,13 +51,13 @@ from __future__ import annotations
 
 import math
 import os
-import re
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from models.errors import InputError
+from robot_io._krl_files import remove_stale_pages, write_all
+from robot_io._krl_pages import NoPageBreakError, PageSection, paginate, section_lines
 from robot_io._krl_text import (
     MAX_IDENTIFIER,
     ascii_comment,
@@ -393,18 +393,6 @@ def _comment(text: str) -> str:
     return ("; " + ascii_comment(text)).rstrip()
 
 
-@dataclass
-class _Section:
-    """A section rendered: fold title, motion lines, where a page may break."""
-
-    number: int
-    title: str
-    comment: str
-    head_tail: list[str]          # marker and $VEL.CP lines
-    body: list[str]
-    breakable: list[bool]         # a page may start at body[i]
-
-
 def _section_title(k: int, sec: KrlSection) -> str:
     mm_s = sec.feed_m_s * 1e3
     title = f"section {k}: {ascii_comment(sec.kind)}, {mm_s:.6f} mm/s"
@@ -414,8 +402,8 @@ def _section_title(k: int, sec: KrlSection) -> str:
 
 
 def _render_sections(spec: KrlProgramSpec, sections: Sequence[KrlSection],
-                     moves: Sequence[KrlMove], feed_names: list[str]) -> list[_Section]:
-    out: list[_Section] = []
+                     moves: Sequence[KrlMove], feed_names: list[str]) -> list[PageSection]:
+    out: list[PageSection] = []
     marker = f"{spec.name}_SEC" if spec.override_hook != "none" else None
     by_section: list[list[KrlMove]] = [[] for _ in sections]
     for m in moves:
@@ -425,61 +413,9 @@ def _render_sections(spec: KrlProgramSpec, sections: Sequence[KrlSection],
         head.append(f"$VEL.CP = {feed_names[k - 1]} ; "
                     f"{real_literal(float(sec.feed_m_s), FEED_DECIMALS)} m/s, see {spec.name}.dat")
         body = [_motion(m) for m in mv]
-        out.append(_Section(k, _section_title(k, sec), _comment(sec.comment) if sec.comment else "",
+        out.append(PageSection(k, _section_title(k, sec), _comment(sec.comment) if sec.comment else "",
                             head, body, [m.kind != "CIRC" for m in mv]))
     return out
-
-
-def _section_lines(s: _Section, lo: int, hi: int, continued: bool) -> list[str]:
-    title = s.title + (" (continued)" if continued else "")
-    lines = [f";FOLD {title}"]
-    if continued:
-        lines.append(f"; section {s.number} is longer than a page: split before a LIN, "
-                     "$VEL.CP re-issued")
-    elif s.comment:
-        lines.append(s.comment)
-    lines += s.head_tail + s.body[lo:hi] + [f";ENDFOLD (section {s.number})"]
-    return lines
-
-
-def _paginate(secs: list[_Section], budget: int) -> list[list[str]]:
-    """Pack section folds into pages of at most ``budget`` lines (see the module docstring)."""
-    pages: list[list[str]] = []
-    cur: list[str] = []
-    for s in secs:
-        whole = _section_lines(s, 0, len(s.body), False)
-        if len(cur) + len(whole) <= budget:
-            cur += whole
-            continue
-        if len(whole) <= budget:
-            pages.append(cur)
-            cur = list(whole)
-            continue
-        i = 0
-        while i < len(s.body):
-            overhead = len(_section_lines(s, 0, 0, i > 0))
-            room = budget - len(cur) - overhead
-            j = min(len(s.body), i + max(room, 0))
-            if j < len(s.body):
-                while j > i and not s.breakable[j]:
-                    j -= 1
-            if j <= i:
-                if not cur:     # a page's worth of CIRCs in a row: no place to break
-                    raise KrlError("moves", f"section {s.number} has a page's worth ({budget} "
-                                   "lines) of CIRCs without a LIN between them, and a page may "
-                                   "not begin with a CIRC; split the section or write part of "
-                                   "the arcs as LINs")
-                pages.append(cur)
-                cur = []
-                continue
-            cur += _section_lines(s, i, j, i > 0)
-            i = j
-            if i < len(s.body):
-                pages.append(cur)
-                cur = []
-    if cur:
-        pages.append(cur)
-    return [p for p in pages if p]
 
 
 def _header(comment: str, src: bool = True) -> list[str]:
@@ -543,7 +479,7 @@ def _decls(spec: KrlProgramSpec, lim: ControllerLimits, pages: Sequence[str]) ->
     return lines
 
 
-def _dat_main(spec: KrlProgramSpec, sections: Sequence[KrlSection], secs: list[_Section],
+def _dat_main(spec: KrlProgramSpec, sections: Sequence[KrlSection], secs: list[PageSection],
               feed_names: list[str], pages: Sequence[str]) -> list[str]:
     lines = _header(f"cctmill feeds of {spec.name}", src=False) + [
         f"DEFDAT {spec.name} PUBLIC",
@@ -592,7 +528,7 @@ def render_krl(spec: KrlProgramSpec, sections: Sequence[KrlSection],
     secs = _render_sections(spec, sections, moves, feed_names)
     note_lines = [_comment(n) for n in notes]
     limit = spec.page_lines or lim.page_lines
-    body = [line for s in secs for line in _section_lines(s, 0, len(s.body), False)]
+    body = [line for s in secs for line in section_lines(s, 0, len(s.body), False)]
     name = spec.name
     head = _header(f"cctmill {name}")
     single = (head + [f"DEF {name}( )"] + _decls(spec, lim, ()) + _preamble(spec, note_lines)
@@ -608,7 +544,12 @@ def render_krl(spec: KrlProgramSpec, sections: Sequence[KrlSection],
                        f"{MAX_IDENTIFIER} characters: pass a --name of at most "
                        f"{MAX_IDENTIFIER - 4} characters")
     page_head = len(_header("")) + 3 + len(note_lines)   # header, DEF, 2 comments, notes
-    pages = _paginate(secs, limit - page_head - 1)
+    try:
+        pages = paginate(secs, limit - page_head - 1)
+    except NoPageBreakError as e:
+        raise KrlError("moves", f"section {e.section} has a page's worth ({limit} lines) of "
+                       "CIRCs without a LIN between them, and a page may not begin with a CIRC; "
+                       "split the section or write part of the arcs as LINs") from None
     width = max(3, len(str(len(pages))))
     if len(name) + 1 + width > MAX_IDENTIFIER:
         raise KrlError("name", f"{len(pages)} pages need names {name}_{'0' * width}: pass a "
@@ -637,41 +578,6 @@ def render_krl(spec: KrlProgramSpec, sections: Sequence[KrlSection],
 
 
 # --------------------------------------------------------------------------- writing
-def _file_mode() -> int:
-    """0666 less the process umask (what ``open()`` would give a new file)."""
-    umask = os.umask(0)
-    os.umask(umask)
-    return 0o666 & ~umask
-
-
-def _write_all(folder: Path, files: dict[str, bytes]) -> list[Path]:
-    """Write every file to a temporary beside its target, then move them all into place."""
-    for fname in files:
-        target = folder / fname
-        if target.exists() and not target.is_file():
-            raise KrlError("output", f"{target} is in the way and not a file; remove it or "
-                           "choose another output folder")
-    folder.mkdir(parents=True, exist_ok=True)
-    temps: list[tuple[Path, Path]] = []
-    mode = _file_mode()
-    try:
-        for fname, data in files.items():
-            fd, tmp = tempfile.mkstemp(prefix=f".{fname}.", suffix=".tmp", dir=folder)
-            temps.append((Path(tmp), folder / fname))
-            os.chmod(tmp, mode)            # mkstemp makes 0600; give the file the usual mode
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(data)
-                fh.flush()
-                os.fsync(fh.fileno())
-        for tmp, target in temps:
-            os.replace(tmp, target)
-    finally:
-        for tmp, _ in temps:
-            if tmp.exists():
-                tmp.unlink()
-    return [target for _, target in temps]
-
-
 def write_krl(spec: KrlProgramSpec, sections: Sequence[KrlSection], moves: Sequence[KrlMove],
               folder: str | os.PathLike, notes: Sequence[str] = ()) -> list[Path]:
     """Render the program (:func:`render_krl`) and write its files into ``folder``.
@@ -691,23 +597,12 @@ def write_krl(spec: KrlProgramSpec, sections: Sequence[KrlSection], moves: Seque
         data = {k: v.encode("ascii") for k, v in out.files.items()}
     except UnicodeEncodeError as e:   # a bug if it happens: every line is built from ASCII
         raise KrlError("text", f"non-ASCII character in the rendered program ({e})") from e
-    paths = _write_all(Path(folder), data)
-    _remove_stale_pages(Path(folder), spec.name, set(out.files))
+    target_dir = Path(folder)
+    for fname in data:
+        target = target_dir / fname
+        if target.exists() and not target.is_file():
+            raise KrlError("output", f"{target} is in the way and not a file; remove it or "
+                           "choose another output folder")
+    paths = write_all(target_dir, data)
+    remove_stale_pages(target_dir, spec.name, set(out.files))
     return paths
-
-
-def _remove_stale_pages(folder: Path, name: str, keep: set[str]) -> None:
-    """Delete pages ``NAME_nnn.src/.dat`` an earlier, longer export of this program left behind
-    (only files whose header says cctmill wrote them as a page of ``NAME``)."""
-    pattern = re.compile(rf"{re.escape(name)}_\d{{3,}}\.(src|dat)\Z", re.IGNORECASE)
-    mark = f"&COMMENT cctmill {name} page ".encode("ascii")
-    for p in folder.iterdir():
-        if p.name in keep or not pattern.match(p.name) or not p.is_file():
-            continue
-        try:
-            with open(p, "rb") as fh:
-                head = fh.read(200)
-            if mark in head:
-                p.unlink()
-        except OSError:      # best effort: a stale page is never called
-            continue
