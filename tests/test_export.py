@@ -31,7 +31,7 @@ from planner.plan_file import KINDS, SAMPLE_ARRAYS, load_plan, write_plan
 from robot_io.krl import KrlError
 from robot_io.krl_lint import lint_krl
 from robot_io.krl_reader import abc_to_matrix, read_krl
-from robot_io.toolpath import MoveKind
+from robot_io.toolpath import MoveKind, arc_geometry
 
 SEED = 20240611
 POS_TOL_MM = 1e-3
@@ -174,6 +174,7 @@ def _check_export(plan_path: Path, paths: list[Path], controller: str, compensat
     covered = np.zeros(len(pos), bool)
     prev_target = -1
     for got, want, i in zip(tp.moves, prog.moves, prog.sample_of_move, strict=True):
+        assert got.kind == (MoveKind.ARC_CCW if want.kind == "CIRC" else MoveKind.LINEAR)
         # the move's target is plan sample i
         np.testing.assert_allclose(got.end * 1e3, pos_mm[i], atol=POS_TOL_MM, rtol=0)
         r = abc_to_matrix(*got.extra["abc_deg"]).T @ abc_to_matrix(*s["abc_wp_deg"][i])
@@ -213,7 +214,6 @@ def test_synthetic_plan_round_trip(tmp_path, controller) -> None:
     assert set(by_section[5]) == {"LIN"}                        # tool axis turns: LINs
     for m in tp.moves:
         if m.kind == MoveKind.ARC_CCW:
-            from robot_io.toolpath import arc_geometry
             assert abs(math.degrees(arc_geometry(m)["sweep"])) <= CIRC_MAX_SWEEP_DEG + 1e-6
     assert facts["decl"]["bracket_gamma_test_F001"] == 0.2      # rapid: no planned feed
     assert facts["decl"]["bracket_gamma_test_F003"] == 0.001234567
