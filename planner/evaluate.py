@@ -28,6 +28,7 @@ import numpy as np
 from models.analysis import Cut, ModelParameters, point_function
 from models.cutting import MILLING_MODES, load_material
 from models.errors import InputError
+from planner._progress import bar
 from planner.job import Job
 from planner.prepare import Prepared
 
@@ -207,7 +208,7 @@ class PathModel:
     """
 
     def __init__(self, prep: Prepared, params: ModelParameters | None = None,
-                 limits: Limits | None = None, threads: int = 2) -> None:
+                 limits: Limits | None = None, threads: int = 2, progress: bool = False) -> None:
         job = prep.job
         self.prep = prep
         self.params = params or model_parameters(job, prep)
@@ -217,9 +218,11 @@ class PathModel:
             raise InputError("model.chatter_criterion",
                              f"{self.criterion!r} is not eigen, floquet or gamma_window")
         self._floquet_rho: np.ndarray | None = None
+        self._bar = None
         self.process_model = job.model.process_model
         self.mass_model = job.model.mass_model
         self.threads = threads
+        self.progress = progress
         e = prep.engagement
         cutting = prep.path.cutting & (e.mode >= 0) & prep.kinematics.reachable
         #: indices of the engaged samples into the path, (m,).
@@ -271,6 +274,8 @@ class PathModel:
         res = self._mapped(n)(q=self.q[:, sel], cut=self.cut[:, sel], feed=feeds.reshape(1, -1),
                               params=self._param_vec)
         self.evaluations += 1
+        if self._bar is not None:
+            self._bar.update(n)
         r = {k: np.asarray(v, float) for k, v in res.items()}
         force_o = r["force_o"].reshape(3, n)
         force = np.linalg.norm(force_o, axis=0)
@@ -313,6 +318,8 @@ class PathModel:
         lim = self.limits
         m = len(self)
         start = self.evaluations
+        # about FEED_GRID + 5 evaluations of every sample (the grid, then the refinement)
+        self._bar = bar((FEED_GRID + 5) * m, "feed ceilings", self.progress, unit="point")
         grid = np.geomspace(lim.feed_min, lim.feed_max, FEED_GRID)
         first_bad = np.full(m, FEED_GRID)
         floor = np.full(m, "", dtype=object)
@@ -342,6 +349,8 @@ class PathModel:
                                              why_grid[refine, j])
             for k, w in zip(refine, why, strict=True):
                 binding[k] = CONSTRAINTS[int(w)]
+        self._bar.close()
+        self._bar = None
         return Ceilings(feed=feed, binding=binding.astype(str), floor_violation=floor.astype(str),
                         evaluations=self.evaluations - start)
 

@@ -21,6 +21,7 @@ import pinocchio as pin
 
 from models.errors import UnreachablePoseError
 from models.robot import Robot
+from planner._progress import bar
 from planner.path import PathSamples
 
 __all__ = ["IKOptions", "PathKinematics", "solve_path"]
@@ -255,7 +256,7 @@ def _first(solver: _Solver, p: np.ndarray, d: np.ndarray, opt: IKOptions) -> np.
 
 
 def solve_path(robot: Robot, path: PathSamples, tool: np.ndarray,
-               options: IKOptions | None = None) -> PathKinematics:
+               options: IKOptions | None = None, progress: bool = False) -> PathKinematics:
     """Joint angles for every path sample.
 
     Args:
@@ -263,6 +264,7 @@ def solve_path(robot: Robot, path: PathSamples, tool: np.ndarray,
         path: the samples (TCP positions and tool axes in the robot base).
         tool: ``$TOOL`` 4×4 (TCP in the flange frame, SI); the tool axis is the TCP's +x.
         options: solver options.
+        progress: show a progress bar on stderr (long paths).
 
     Returns:
         :class:`PathKinematics` (never raises for unreachable samples: call
@@ -283,7 +285,10 @@ def solve_path(robot: Robot, path: PathSamples, tool: np.ndarray,
     if opt.tool_rotation is not None:
         q, *_ = solver.solve(q, path.position[0], direction[0],
                              rot=_frame_about(direction[0], opt.tool_rotation))
+    pbar = bar(n, "inverse kinematics", progress)
     for i in range(n):
+        if i % 256 == 0:
+            pbar.update(min(256, n - i))
         rot = (None if opt.tool_rotation is None
                else _frame_about(direction[i], opt.tool_rotation))
         q_new, ep, er, it = solver.solve(q, path.position[i], direction[i], rot=rot)
@@ -297,6 +302,7 @@ def solve_path(robot: Robot, path: PathSamples, tool: np.ndarray,
             limiting[i] = joint if converged else "reach"
         else:
             q = q_new
+    pbar.close()
     jumps = np.flatnonzero(np.max(np.abs(np.diff(q_out, axis=0)), axis=1) > JUMP_TOL) + 1 \
         if n > 1 else np.zeros(0, int)
     problems = []

@@ -198,7 +198,7 @@ def _other_sections(runs, prep: Prepared, limits: Limits) -> list[Section]:
 
 def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float | None = None,
                   limits: Limits | None = None, f_ref: float | None = None,
-                  thesis_every_sample: bool = True) -> PlanResult:
+                  thesis_every_sample: bool = True, progress: bool = False) -> PlanResult:
     """Plan an already prepared job (see :func:`plan_job`).
 
     Args:
@@ -209,6 +209,7 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
         f_ref: feed scale of the optimiser's variables [m/s] (default feed_max).
         thesis_every_sample: the thesis baseline also holds at every sample (default); False
             runs it exactly as published (midpoints only), for comparison.
+        progress: show progress bars on stderr (long jobs).
     """
     if method not in METHODS:
         raise CctmillError(f"--method: {method!r} is not one of {', '.join(METHODS)}")
@@ -219,7 +220,7 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
     walls: dict[str, float] = {}
     t = time.perf_counter()
     prep.kinematics.raise_if_unreachable()
-    model = PathModel(prep, limits=limits)
+    model = PathModel(prep, limits=limits, progress=progress)
     limits = model.limits
     ceil = model.ceilings()
     walls["ceilings_s"] = time.perf_counter() - t
@@ -296,7 +297,7 @@ def plan_job(job: Job, method: str | None = None, safety_factor: float | None = 
     t = time.perf_counter()
     prep = prepare(job, progress=progress)
     prep_time = time.perf_counter() - t
-    result = plan_prepared(prep, method or job.plan.method, safety_factor)
+    result = plan_prepared(prep, method or job.plan.method, safety_factor, progress=progress)
     result.wall_times = {"prepare_s": prep_time, **result.wall_times}
     return result
 

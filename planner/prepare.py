@@ -78,7 +78,8 @@ def prepare(job: Job, progress: bool = False) -> Prepared:
     fixed = job.kinematics.tool_rotation == "fixed"
     kin = solve_path(robot, path, job.tool_frame(), IKOptions(
         seed=seed, choose_for_stiffness=job.kinematics.choose_for_stiffness and not fixed,
-        tool_rotation=np.radians(job.kinematics.tool_rotation_deg) if fixed else None))
+        tool_rotation=np.radians(job.kinematics.tool_rotation_deg) if fixed else None),
+        progress=progress)
     eng = job.engagement
     feed_dir_wp = path.feed_dir_wp
     if eng.source == "fixed":

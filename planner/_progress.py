@@ -1,0 +1,25 @@
+"""Progress bars on stderr for the long steps (tqdm), off unless asked for.
+
+Library functions take ``progress: bool``; only the CLI turns it on. A bar appears only for work
+that is long enough to watch (:data:`MIN_TOTAL` items) and only on a terminal: piped or captured
+stderr stays clean for the one-line error messages scripts read.
+"""
+
+from __future__ import annotations
+
+import sys
+from typing import Any
+
+from tqdm import tqdm
+
+__all__ = ["MIN_TOTAL", "bar"]
+
+#: Fewer items than this finish in well under a second: no bar.
+MIN_TOTAL = 2000
+
+
+def bar(total: int, desc: str, enabled: bool, unit: str = "sample") -> Any:
+    """A tqdm bar (a no-op one when ``enabled`` is false or ``total`` is small)."""
+    return tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, leave=False,
+                disable=not (enabled and total >= MIN_TOTAL and sys.stderr.isatty()),
+                dynamic_ncols=True, mininterval=0.2)
