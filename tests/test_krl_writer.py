@@ -219,6 +219,10 @@ def test_long_job_pages_on_krc2_and_reads_back(tmp_path) -> None:
     paths = write_krl(spec, secs, mv, tmp_path)
     _lint_clean({p.name: p.read_bytes() for p in paths}, "krc2")
     _check_round_trip(paths[0], secs, mv)
+    # each page also reads on its own, given the main .dat (where the feeds are)
+    per_page = [read_krl(p, global_dat=[paths[1]]) for p in paths if p.suffix == ".src"][1:]
+    assert sum(len(t.moves) for t in per_page) == len(mv)
+    assert all(t.moves[0].feed is not None for t in per_page)
 
 
 def test_krc4_pages_are_shorter(tmp_path) -> None:
