@@ -96,28 +96,29 @@ class PlainLines:
 def scan_plain_lines(text: str, n_lines: int, min_run: int = MIN_RUN) -> PlainLines | None:
     """Classify and read the lines of ``text`` (split at ``"\\n"`` into ``n_lines`` lines);
     ``None`` when there is no run of ``min_run`` plain lines (the numbers are then not read)."""
-    data = text.encode("ascii", "replace")   # one byte per character: columns stay right
-    b = np.frombuffer(data, np.uint8)
-    n = b.size
-    if n == 0:
-        return None
+    # one byte per character (columns stay right), and a final newline so that every line ends
+    # in one
+    b = np.frombuffer(text.encode("ascii", "replace") + b"\n", np.uint8)
     cls = _CLASS[b]
-    is_nl = cls == _NL
-    line_of = np.cumsum(is_nl, dtype=np.int32)   # line index of every byte but newlines
-    line_start = np.concatenate(([0], np.flatnonzero(is_nl) + 1))
-    if line_start.size != n_lines:
+    nl = np.flatnonzero(cls == _NL)
+    if nl.size != n_lines:
         return None
-    bad: list[np.ndarray] = [np.flatnonzero(cls == _BAD)]    # positions that spoil their line
+    line_start = np.empty(n_lines, np.int64)
+    line_start[0] = 0
+    line_start[1:] = nl[:-1] + 1
+    # a line is spoilt by a byte the scan does not read, or by a position found below
+    ok = ~np.logical_or.reduceat(cls == _BAD, line_start)
+    bad_at: list[np.ndarray] = []       # byte positions
     cr = np.flatnonzero(cls == _CR)
-    if cr.size:
-        nxt = np.minimum(cr + 1, n - 1)
-        bad.append(cr[(cr + 1 < n) & (b[nxt] != 10)])          # CR only at the end of a line
+    bad_at.append(cr[b[cr + 1] != 10])   # CR only at the end of a line
     # numbers: maximal runs of digits, points and signs
     is_num = (cls - np.uint8(_DIGIT)) < 3                      # DIGIT, DOT, SIGN (uint8 wraps)
-    starts_num = is_num.copy()
-    starts_num[1:] &= ~is_num[:-1]
-    ends_num = is_num.copy()
-    ends_num[:-1] &= ~is_num[1:]
+    starts_num = np.empty_like(is_num)
+    starts_num[0] = is_num[0]
+    np.greater(is_num[1:], is_num[:-1], out=starts_num[1:])
+    ends_num = np.empty_like(is_num)
+    ends_num[-1] = is_num[-1]
+    np.greater(is_num[:-1], is_num[1:], out=ends_num[:-1])
     num_start = np.flatnonzero(starts_num)
     if num_start.size == 0:
         return None
@@ -129,25 +130,31 @@ def scan_plain_lines(text: str, n_lines: int, min_run: int = MIN_RUN) -> PlainLi
     n_digits, n_points, n_signs = run_sum >> 10, (run_sum >> 5) & 31, run_sum & 31
     good_run = ((run_len <= MAX_NUMBER_CHARS) & (n_digits >= 1) & (n_points <= 1)
                 & (n_signs == (cls[num_start] == _SIGN)))
-    bad.append(num_start[~good_run])
-    # tokens: a letter or the start of a number; a line must read letter, number, letter, ...
+    bad_at.append(num_start[~good_run])
+    # tokens: a letter or the start of a number (newlines only count the lines); a line must
+    # read letter, number, letter, ..., number
     is_letter = cls == _LETTER
-    tok = np.flatnonzero(is_letter | starts_num)
-    tok_letter = is_letter[tok]
-    tok_line = line_of[tok]
+    tok_mask = is_letter | starts_num
+    tok_mask[nl] = True
+    tok = np.flatnonzero(tok_mask)
+    tok_cls = cls[tok]
+    tok_nl = tok_cls == _NL
+    tok_line = np.cumsum(tok_nl)
+    word_tok = ~tok_nl
+    tok, tok_line, tok_letter = tok[word_tok], tok_line[word_tok], tok_cls[word_tok] == _LETTER
     same = tok_line[1:] == tok_line[:-1]
-    bad.append(tok[1:][same & (tok_letter[1:] == tok_letter[:-1])])
+    bad_lines = [tok_line[1:][same & (tok_letter[1:] == tok_letter[:-1])]]
     first = np.concatenate(([True], ~same))
     last = np.concatenate((~same, [True]))
-    bad.append(tok[(first & ~tok_letter) | (last & tok_letter)])
-    ok = np.ones(n_lines, bool)
-    ok[line_of[np.concatenate(bad)]] = False
+    bad_lines.append(tok_line[(first & ~tok_letter) | (last & tok_letter)])
+    ok[np.searchsorted(nl, np.concatenate(bad_at))] = False
+    ok[np.concatenate(bad_lines)] = False
     if not _has_run(ok, min_run):   # not worth reading the numbers
         return None
     # the numbers: blank out everything else (bad numbers become "0" to keep the count)
     keep = np.where(is_num, b, np.uint8(32))
     if not good_run.all():
-        drop = np.zeros(n + 1, np.int8)     # runs are disjoint: +1 at a start, -1 past its end
+        drop = np.zeros(b.size + 1, np.int8)  # runs are disjoint: +1 at a start, -1 past its end
         drop[num_start[~good_run]] = 1
         drop[(num_start + run_len)[~good_run]] = -1
         keep[np.cumsum(drop[:-1]).astype(bool)] = 32
@@ -164,22 +171,21 @@ def scan_plain_lines(text: str, n_lines: int, min_run: int = MIN_RUN) -> PlainLi
     wline = tok_line[wi]
     wval = values[wnum]
     wcol = wpos - line_start[wline] + 1
-    n_l = n_lines
     out: dict[str, np.ndarray] = {}
     for ch in "XYZFG":
         sel = np.flatnonzero(wletter == ord(ch))
         lines = wline[sel]
         v = wval[sel]
-        bad.append(wpos[sel[1:][lines[1:] == lines[:-1]]])      # a second X (… G) on a line
+        bad_lines.append(lines[1:][lines[1:] == lines[:-1]])    # a second X (… G) on a line
         if ch == "G":
             num = wnum[sel]
-            bad.append(wpos[sel[~(((v == 0.0) | (v == 1.0)) & (n_points[num] == 0)
-                                  & (n_signs[num] == 0) & (run_len[num] <= 3))]])
+            bad_lines.append(lines[~(((v == 0.0) | (v == 1.0)) & (n_points[num] == 0)
+                                     & (n_signs[num] == 0) & (run_len[num] <= 3))])
         else:
-            bad.append(wpos[sel[~(np.abs(v) <= W.MAX_WORD_VALUE)]])
+            bad_lines.append(lines[~(np.abs(v) <= W.MAX_WORD_VALUE)])
             if ch == "F":
-                bad.append(wpos[sel[~(v > 0.0)]])
-        col = np.full(n_l, math.nan)
+                bad_lines.append(lines[~(v > 0.0)])
+        col = np.full(n_lines, math.nan)
         col[lines] = v
         out[ch] = col
     axis = np.flatnonzero((wletter == ord("X")) | (wletter == ord("Y")) | (wletter == ord("Z")))
@@ -187,13 +193,13 @@ def scan_plain_lines(text: str, n_lines: int, min_run: int = MIN_RUN) -> PlainLi
     starts_line = np.ones(axis.size, bool)
     starts_line[1:] = axis_line[1:] != axis_line[:-1]
     first_axis = axis[starts_line]
-    col0 = np.zeros(n_l, np.int64)
+    col0 = np.zeros(n_lines, np.int64)
     col0[wline[first_axis]] = wcol[first_axis]
-    has_axis = np.zeros(n_l, bool)
+    has_axis = np.zeros(n_lines, bool)
     has_axis[axis_line] = True
-    nonblank = np.zeros(n_l, bool)
+    nonblank = np.zeros(n_lines, bool)
     nonblank[tok_line] = True
-    ok[line_of[np.concatenate(bad)]] = False
+    ok[np.concatenate(bad_lines)] = False
     if not _has_run(ok, min_run):
         return None
     return PlainLines(ok=ok, x=out["X"], y=out["Y"], z=out["Z"], f=out["F"], g=out["G"],
