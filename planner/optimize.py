@@ -32,6 +32,7 @@ from models.errors import CctmillError
 from planner.sections import CUT, Section, split_by_length
 
 __all__ = [
+    "MAX_ITERATIONS",
     "MERGE_TOL",
     "PlanSolverError",
     "SolveResult",
@@ -45,6 +46,8 @@ MERGE_TOL = 1e-4
 IPOPT_TOL = 1e-9
 #: A cell feed within this fraction of its ceiling is *at* the ceiling [-].
 AT_CEILING = 1e-3
+#: IPOPT iteration limit (the convex sectioning problem needs 20–40).
+MAX_ITERATIONS = 500
 #: Statuses that count as converged.
 _CONVERGED = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 
@@ -97,7 +100,8 @@ def optimize_sections(runs: list[tuple[int, int, int]], ds: np.ndarray, ceiling:
                       ceiling_binding: np.ndarray, feed_min: float, feed_max: float,
                       section_length_min: float, feed_change_max: float | None,
                       change_cost: float, warm: np.ndarray | None = None,
-                      f_ref: float | None = None) -> tuple[list[Section], SolveResult]:
+                      f_ref: float | None = None,
+                      max_iter: int = MAX_ITERATIONS) -> tuple[list[Section], SolveResult]:
     """The optimised sections of the ``cut`` runs.
 
     Args:
@@ -112,6 +116,7 @@ def optimize_sections(runs: list[tuple[int, int, int]], ds: np.ndarray, ceiling:
         change_cost: time-equivalent cost of a feed change of ``f_ref`` [s].
         warm: per-sample feeds to start from [m/s], (n,) (e.g. the thesis baseline).
         f_ref: feed scale [m/s] (default ``feed_max``); the answer does not depend on it.
+        max_iter: IPOPT iteration limit.
 
     Returns:
         The cut sections (in path order) and the solver record.
@@ -155,7 +160,7 @@ def optimize_sections(runs: list[tuple[int, int, int]], ds: np.ndarray, ceiling:
     z = ca.vertcat(x, t)
     nlp = {"x": z, "f": obj, "g": ca.vertcat(*g_list) if g_list else ca.SX(0, 1)}
     opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
-            "ipopt.tol": IPOPT_TOL, "ipopt.max_iter": 500}
+            "ipopt.tol": IPOPT_TOL, "ipopt.max_iter": int(max_iter)}
     solver = ca.nlpsol("feeds", "ipopt", nlp, opts)
     lbx = np.concatenate([np.full(nc, feed_min / f_ref), np.zeros(ne)])
     ubx = np.concatenate([cap / f_ref, np.full(ne, np.inf)])

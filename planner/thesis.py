@@ -8,7 +8,8 @@
 3. Δγ_max = the distance in γ, at the midpoint, from f_real to that limit: |γ(f_max) − γ(f_real)|.
 4. Δγ = the change of γ across the section, γ linearly interpolated (in s, at f_real) between the
    midpoints of neighbouring sections of the run.
-5. Halve the sections where |Δγ| ≥ Δγ_max; repeat until every section passes.
+5. Halve the sections where |Δγ| ≥ Δγ_max (and γ turns at all); repeat until every section
+   passes.
 
 Two additions, because the thesis checks midpoints only and a plan must hold at every sample:
 a section also fails (and is halved) while any of its samples has a ceiling below f_real; and no
@@ -24,8 +25,10 @@ import numpy as np
 
 from planner.sections import CUT, Section
 
-__all__ = ["MAX_ROUNDS", "thesis_sections", "wrap_angle"]
+__all__ = ["ANGLE_TOL", "MAX_ROUNDS", "thesis_sections", "wrap_angle"]
 
+#: A γ change below this is no change [rad] (floating-point noise of interpolated angles).
+ANGLE_TOL = 1e-9
 #: Halving rounds before giving up refining (each round at least halves the failing sections;
 #: 2^30 × L_min exceeds any path).
 MAX_ROUNDS = 30
@@ -103,7 +106,8 @@ def thesis_sections(runs: list[tuple[int, int, int]], s: np.ndarray, ceiling: np
                 dg = np.zeros(1)
             low = np.array([every_sample and np.nanmin(ceiling[x[0]:x[1]]) < fr
                             for x, fr in zip(secs, f_real, strict=True)], dtype=bool)
-            fail = (np.abs(dg) >= dg_max) | low
+            # a section whose γ does not turn cannot approach the limit (|Δγ| = Δγ_max = 0)
+            fail = ((np.abs(dg) >= dg_max) & (np.abs(dg) > ANGLE_TOL)) | low
             splittable = np.array([_length(s, x) >= 2 * section_length_min for x in secs])
             todo = fail & splittable
             if not np.any(todo):
