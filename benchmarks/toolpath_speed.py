@@ -188,9 +188,10 @@ def markdown(res: dict) -> str:
             best, worst = p[f"{key}_s"], p[f"{key}_worst_s"]
             cell = "—"
             if ratio is not None:
-                ok = "met" if p[ratio + "_worst"] >= TARGET_RATIO else "NOT met"
-                cell = (f"{p[ratio]:.1f}× ({p[ratio + '_worst']:.1f}×; {ok}, target ≥ "
-                        f"{TARGET_RATIO:.0f}×)")
+                best_r, worst_r = p[ratio], p[ratio + "_worst"]
+                ok = ("met" if worst_r >= TARGET_RATIO else "met on the best repeat only"
+                      if best_r >= TARGET_RATIO else "NOT met")
+                cell = f"{best_r:.1f}× ({worst_r:.1f}×; {ok}, target ≥ {TARGET_RATIO:.0f}×)"
             return (f"| {label} | {best:.4f} s ({worst:.4f} s) | {n / best:,.0f} "
                     f"({n / worst:,.0f}) | {cell} |")
 
