@@ -217,47 +217,17 @@ def _cmd_demo(args: argparse.Namespace) -> int:
             plot_characteristic(ch, png, title="Thesis Case 1")
             written.append(png)
             print(f"feed limit {ch.feed_limit * 1e3:.2f} mm/s, bound by {ch.binding}\n")
-    from importlib import resources
+    from planner.demo import run_demo_job
 
-    from planner.job import load_job
-    from planner.plots import plot_path_kinematics
-    from planner.prepare import inspect_job, prepare
-
-    job = load_job(str(resources.files("planner").joinpath("data/demo/demo_job.toml")))
-    prep = prepare(job)
-    prep.kinematics.raise_if_unreachable()
-    summary = inspect_job(prep)
-    path = out / "demo_job_inspect.json"
-    write_text_atomic(path, json.dumps(summary, indent=2) + "\n")
-    written.append(path)
-    e, k = prep.engagement, prep.kinematics
-    png = out / "demo_path_kinematics.png"
-    plot_path_kinematics(prep.path.s, k.q, prep.robot.data.lower, prep.robot.data.upper,
-                         k.joint_names, k.reachable, e.a_e, e.a_p, e.mode, png,
-                         title=f"Demo job {job.job.name}: joints and engagement along the path")
-    written.append(png)
-    print(f"== Demo job {job.job.name}: {summary['samples']} samples over "
-          f"{summary['path_length_m']:.3f} m, all reachable; engagement "
-          + ", ".join(f"{m} {n}" for m, n in summary["engagement"]["modes"].items()) + "\n")
-    from planner.plan import plan_prepared, write_plan_outputs
-
-    plans = {m: plan_prepared(prep, m) for m in ("thesis", "optimize")}
-    res = plans["optimize"]
-    plan_files = write_plan_outputs(res, out)
-    written += [p for p in plan_files.values() if isinstance(p, Path)]
-    from planner.export import export_plan
-
-    krl = export_plan(plan_files["plan"], out / "krl", controller="krc4")   # atomic, all or none
-    written += krl
-    ev = res.evaluation
-    thesis_time = plans["thesis"].cycle_time
-    print(f"== Plan of the demo job (optimize): cycle {res.cycle_time:.1f} s vs thesis baseline "
-          f"{thesis_time:.1f} s ({100 * (1 - res.cycle_time / thesis_time):.1f} % shorter); "
-          f"{len(res.section_rows)} sections; worst force {ev.force.max():.0f} N, worst "
-          f"deflection {ev.deflection_norm.max() * 1e3:.3f} mm\n")
+    demo = run_demo_job(out)
+    written += demo.written
+    for line in demo.lines:
+        print(line + "\n")
     print("wrote:")
     for w in written:
         print(f"  {w}")
+    for note in demo.notes:
+        print(f"note: {note}")
     return 0
 
 

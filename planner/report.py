@@ -18,15 +18,30 @@ from typing import Any
 
 import numpy as np
 
+from models.errors import CctmillError
 from planner._atomic import atomic_path, write_text_atomic
 
-__all__ = ["BINDING_COLOURS", "plot_along_path", "plot_characteristics", "write_report"]
+__all__ = [
+    "BINDING_COLOURS",
+    "BROWSERS",
+    "ReportRenderError",
+    "find_browser",
+    "plot_along_path",
+    "plot_characteristics",
+    "render_screenshot",
+    "tightest_sections",
+    "write_report",
+]
 
 #: One colour per binding constraint (bands in the plots, cells in the table).
 BINDING_COLOURS = {
     "chatter": "#d62728", "force": "#ff7f0e", "deflection": "#9467bd", "power": "#8c564b",
     "robot": "#1f77b4", "feed_max": "#2ca02c", "feed_change": "#7f7f7f",
 }
+
+
+class ReportRenderError(CctmillError):
+    """The report could not be rendered to a screenshot (no browser, or it failed)."""
 
 
 def _plt():
@@ -181,7 +196,9 @@ def _img(path: Path) -> str:
 
 
 def _table(headers: list[str], rows: list[list[Any]], colour_col: int | None = None) -> str:
-    out = ["<table><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in headers) + "</tr>"]
+    out = ["<table>"]
+    if any(headers):
+        out.append("<tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in headers) + "</tr>")
     for row in rows:
         cells = []
         for i, v in enumerate(row):
@@ -259,3 +276,53 @@ colour says what stops it going faster. Files: plan.json (sections), samples.npz
 """
     report = write_text_atomic(out / "report.html", doc)
     return {"report": report, "plot_along_path": along, "plot_characteristics": chars}
+
+
+#: Browsers tried for the headless screenshot, in order (Debian's package is ``chromium``).
+BROWSERS = ("chromium", "chromium-browser", "google-chrome")
+#: Flags for a headless, offline, throw-away browser (no network, no profile, no GPU).
+_BROWSER_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                  "--hide-scrollbars", "--force-device-scale-factor=1")
+#: Longest a screenshot may take [s].
+SCREENSHOT_TIMEOUT = 120.0
+
+
+def find_browser() -> str | None:
+    """Path of a headless-capable Chromium, or None."""
+    import shutil
+
+    for name in BROWSERS:
+        exe = shutil.which(name)
+        if exe:
+            return exe
+    return None
+
+
+def render_screenshot(html_path: str | os.PathLike, png_path: str | os.PathLike,
+                      width: int = 1240, height: int = 3600) -> Path:
+    """Render ``html_path`` in headless Chromium and save a PNG of the page (atomically).
+
+    Raises:
+        ReportRenderError: no browser, or the browser failed or wrote nothing.
+    """
+    import subprocess
+    import tempfile
+
+    exe = find_browser()
+    if exe is None:
+        raise ReportRenderError("no Chromium found to render the report (apt-get install chromium)")
+    page = Path(html_path).resolve().as_uri()
+    with tempfile.TemporaryDirectory(prefix="cctmill-browser-") as profile, \
+            atomic_path(png_path, suffix=".png") as tmp:
+        cmd = [exe, *_BROWSER_FLAGS, f"--user-data-dir={profile}", f"--window-size={width},{height}",
+               f"--screenshot={tmp}", page]
+        try:
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=SCREENSHOT_TIMEOUT,
+                                  check=False)
+        except (OSError, subprocess.TimeoutExpired) as e:
+            raise ReportRenderError(f"{exe} could not render {html_path}: {e}") from e
+        if not tmp.exists() or tmp.stat().st_size == 0:
+            raise ReportRenderError(f"{exe} wrote no screenshot (exit {proc.returncode}): "
+                                    f"{proc.stderr.strip()[-300:]}")
+    return Path(png_path)
