@@ -135,7 +135,7 @@ def check_plan(prep: Prepared, feed: np.ndarray, kinds: np.ndarray, speed: np.nd
         if not ok:
             viol.append(Violation(int(k), "chatter", float(value), float(limit), path.where(k)))
     ds = step_lengths(path.s)
-    for a, b, kind, f in sections:
+    for a, _, kind, f in sections:
         if kind == RAPID:
             continue
         if not (limits.feed_min * (1 - REL_TOL) <= f <= limits.feed_max * (1 + REL_TOL)):
@@ -145,12 +145,12 @@ def check_plan(prep: Prepared, feed: np.ndarray, kinds: np.ndarray, speed: np.nd
     for i, (a, b, _) in enumerate(runs):
         run_of[a:b] = i
     cut_secs = [x for x in sections if x[2] == CUT]
-    for (a0, b0, _, f0), (a1, b1, _, f1) in zip(cut_secs, cut_secs[1:], strict=False):
+    for (_, b0, _, f0), (a1, _, _, f1) in zip(cut_secs, cut_secs[1:], strict=False):
         if b0 == a1 and limits.feed_change_max is not None and \
                 abs(f1 - f0) > limits.feed_change_max * (1 + 1e-6) + 1e-12:
             viol.append(Violation(a1, "feed_change", abs(f1 - f0), limits.feed_change_max,
                                   path.where(a1)))
-    for a, b, kind, _ in cut_secs:
+    for a, b, _, _ in cut_secs:
         run = runs[run_of[a]]
         length = ds[a:b].sum()
         if length < limits.section_length_min * (1 - 1e-9) and (run[0], run[1]) != (a, b):

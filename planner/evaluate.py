@@ -10,8 +10,9 @@ normal to the machined wall), γ, the chatter margin, the spindle power.
 required margin, resultant force ≤ the force limit, ‖δ‖ ≤ the deflection tolerance, spindle power ≤
 its limit — *and every feed below it does too* (the feed limit of the stability characteristic,
 SPEC §5 step 7). It is found on a log-spaced feed grid and refined by regula falsi (Illinois) on
-the largest normalised constraint slack in log-feed, every evaluation with the full CCT model. Force, deflection and power grow with feed; the margin of the ``thesis``
-process model falls with it and that of the ``oriented`` model hardly changes, so the constraints
+the largest normalised constraint slack in log-feed, every evaluation with the full CCT model.
+Force, deflection and power grow with feed; the margin of the ``thesis`` process model falls with
+it (mostly) and that of the ``oriented`` model hardly changes, so the constraints
 are monotone in feed and a ceiling represents them exactly; the grid catches a constraint that
 fails and recovers between two grid feeds only if it fails at a grid feed. The independent checker
 (:mod:`planner.check`) re-evaluates every planned sample, so the plan never relies on this

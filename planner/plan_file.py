@@ -35,7 +35,8 @@ and the online supervisor (``cctmill supervise``). Units are in the key names (t
 
     s_m (n,)  q_rad (n, 6)  position_wp_m (n, 3)  abc_wp_deg (n, 3)  tool_axis_wp (n, 3)
     section (n,) int  kind (n,) int (0 cut, 1 air, 2 rapid)  arc (n,) bool  move (n,) int
-    line (n,) int  source_file (n,) int (index into plan.json's ``files``)  feed_mm_s (n,) planned  speed_mm_s (n,) timed  time_s (n,)
+    line (n,) int  source_file (n,) int (index into plan.json's ``files``)
+    feed_mm_s (n,) planned  speed_mm_s (n,) timed  time_s (n,)
     force_N (n,)  deflection_mm (n,)  deflection_wp_m (n, 3)  deflection_normal_mm (n,)
     gamma_deg (n,)  margin_N_per_m (n,)  power_kW (n,)  a_e_m (n,)  a_p_m (n,)  mode (n,) int
 
