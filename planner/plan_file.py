@@ -55,7 +55,7 @@ from typing import Any
 
 import numpy as np
 
-from models.errors import CctmillError
+from models.errors import DataFileError
 from planner._atomic import atomic_path, write_text_atomic
 
 __all__ = [
@@ -90,16 +90,8 @@ _SECTION_REQUIRED = ("index", "kind", "sample_start", "sample_stop", "s_start_m"
                      "feed_mm_s", "binding")
 
 
-class PlanFileError(CctmillError):
-    """A plan file is missing, malformed, or not a cctmill plan.
-
-    Attributes:
-        path: the file.
-    """
-
-    def __init__(self, path: str, message: str) -> None:
-        super().__init__(f"{path}: {message}")
-        self.path = path
+class PlanFileError(DataFileError):
+    """A plan file is missing, malformed, or not a cctmill plan (``path``: the file)."""
 
 
 @dataclass(frozen=True)
