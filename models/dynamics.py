@@ -345,13 +345,39 @@ def _steps_per_tooth(cut: Cut, fs: float) -> int:
     return max(MIN_STEPS_PER_TOOTH, int(math.ceil(period * fs)))
 
 
-def _edge_force(geo_row: tuple, h: np.ndarray, k: list[float]) -> tuple[np.ndarray, np.ndarray]:
-    """Force (F_Xo, F_Yo, F_Zo) [N] of the cutting edge slices and the cutting mask."""
-    cos, sin, engaged, width = geo_row
-    cuts = engaged & (h > 0.0)
-    f_t, f_r, f_a = cutting.edge_forces(None, np.where(cuts, h, 0.0), np.where(cuts, width, 0.0), k)
-    return np.array([np.dot(f_t, sin) - np.dot(f_r, cos), f_a.sum(),
-                     -np.dot(f_t, cos) - np.dot(f_r, sin)]), cuts
+@dataclass(frozen=True)
+class _Row:
+    """The engaged edge slices of one instant, with their force laws (engaged only: the others
+    carry no force and keep no surface)."""
+
+    normal: np.ndarray  # (E, 2): n(φ) in (X_o, Z_o)
+    chip: np.ndarray  # (E,): rigid chip c sin φ [m]
+    slope: np.ndarray  # (3, E): force per metre of chip while cutting [N/m]
+    offset: np.ndarray  # (3, E): edge force while cutting [N]
+
+    def force(self, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(F_Xo, F_Yo, F_Zo) [N] for chips ``h`` [m], and which edges cut (h > 0)."""
+        cuts = h > 0.0
+        return self.slope @ np.where(cuts, h, 0.0) + self.offset @ cuts, cuts
+
+
+def _rows(geo: CutterGeometry, c: float, k: list[float]) -> list[_Row]:
+    """Per instant, the edge force F = −F_t t − F_r n + F_a Y_o of :func:`cutting.edge_forces`
+    (linear in h: its magnitudes at h = 0 and h = 1 m give offset and slope)."""
+    rows = []
+    for p in range(geo.steps):
+        idx = np.flatnonzero(geo.engaged[p])
+        cos, sin, b = geo.cos[p, idx], geo.sin[p, idx], geo.width[p, idx]
+        mags0 = cutting.edge_forces(None, np.zeros_like(b), b, k)
+        mags1 = cutting.edge_forces(None, np.ones_like(b), b, k)
+
+        def project(f_t, f_r, f_a, cos=cos, sin=sin):
+            return np.vstack([f_t * sin - f_r * cos, f_a, -f_t * cos - f_r * sin])
+
+        offset = project(*mags0)
+        slope = project(*(m1 - m0 for m1, m0 in zip(mags1, mags0, strict=True)))
+        rows.append(_Row(np.column_stack([cos, sin]), c * sin, slope, offset))
+    return rows
 
 
 def simulate(structure: Structure, cut: Cut, feed: float, coefficients, helix_angle: float,
@@ -394,65 +420,62 @@ def simulate(structure: Structure, cut: Cut, feed: float, coefficients, helix_an
     if n_steps < 2 * m:
         raise InputError("duration", f"simulate at least two tooth periods ({2 * geo.tooth_period:g} s)")
     phi_d, g0, g1 = discretise(structure, dt)
-    g1x = g1[0:2]
-    rows = [(geo.cos[p], geo.sin[p], geo.engaged[p], geo.width[p]) for p in range(m)]
-    chip0 = c * geo.sin  # rigid chip c sin φ, (m, N·S)
+    # Forces enter as (F_Xo, F_Yo, F_Zo); the axial component does not load the 2-DOF plane.
+    g0_3 = np.column_stack([g0[:, 0], np.zeros(4), g0[:, 1]])
+    g1_3 = np.column_stack([g1[:, 0], np.zeros(4), g1[:, 1]])
+    g1x_3 = g1_3[0:2]
+    rows = _rows(geo, c, k)
 
-    # Surface memory: extra material beyond the nominal chip, per (row, edge slice): h = w + c sin φ
-    # + n·x. After a cut w = −n·x (the surface is where the edge was); where the edge left the cut,
-    # w grows by one more c sin φ (the older surface stays).
-    w = np.zeros_like(chip0)
+    # Surface memory: extra material beyond the nominal chip, per engaged edge slice of each
+    # instant: h = w + c sin φ + n·x. After a cut w = −n·x (the surface is where the edge was);
+    # where the edge left the cut, w grows by one more c sin φ (the older surface stays).
+    w = [np.zeros(row.chip.shape) for row in rows]
     z = np.zeros(4)
     if initial == "static":
-        mean = np.zeros(3)
-        for p in range(m):
-            mean += _edge_force(rows[p], chip0[p], k)[0]
-        mean /= m
+        mean = sum(row.force(row.chip)[0] for row in rows) / m
         # The surface was cut at the static position: the chip there is the rigid one, so the
         # equilibrium is K x = F̄(rigid chip).
         z[0:2] = np.linalg.solve(structure.stiffness, mean[[0, 2]])
-        w = -(geo.cos * z[0] + geo.sin * z[1])
+        w = [-(row.normal @ z[0:2]) for row in rows]
     force = np.zeros((n_steps + 1, 3))
     disp = np.zeros((n_steps + 1, 2))
     disp[0] = z[0:2]
-    f_prev = _edge_force(rows[0], w[0] + chip0[0] + geo.cos[0] * z[0] + geo.sin[0] * z[1], k)[0]
+    f_prev = rows[0].force(w[0] + rows[0].chip + rows[0].normal @ z[0:2])[0]
     force[0] = f_prev
-    drive_prev = f_prev[[0, 2]]
     iterations = 0
     unconverged = 0
     for n in range(1, n_steps + 1):
         p = n % m
         row = rows[p]
-        cos, sin = row[0], row[1]
-        h_rigid = w[p] + chip0[p]
-        base = phi_d @ z + g0 @ drive_prev
-        f, cuts = _edge_force(row, h_rigid, k)
+        h_rigid = w[p] + row.chip
+        base = phi_d @ z + g0_3 @ f_prev
+        f, cuts = row.force(h_rigid)
         if iterate:
             for it in range(1, MAX_ITERATIONS + 1):
-                x = base[0:2] + g1x @ f[[0, 2]]
-                f_new, cuts = _edge_force(row, h_rigid + cos * x[0] + sin * x[1], k)
-                change = np.linalg.norm(f_new - f)
+                x = base[0:2] + g1x_3 @ f
+                f_new, cuts = row.force(h_rigid + row.normal @ x)
+                d = f_new - f
                 f = f_new
-                if change <= FORCE_TOLERANCE * max(np.linalg.norm(f), FORCE_FLOOR):
+                if math.sqrt(d @ d) <= FORCE_TOLERANCE * max(math.sqrt(f @ f), FORCE_FLOOR):
                     break
             else:
                 unconverged += 1
             iterations += it
-            drive = f[[0, 2]]
-            z = base + g1 @ drive
+            drive = f
+            z = base + g1_3 @ drive
             x = z[0:2]
             reported = f
         else:
-            drive = f[[0, 2]]  # the structure answers the rigid-chip force
-            z = base + g1 @ drive
+            drive = f  # the structure answers the rigid-chip force
+            z = base + g1_3 @ drive
             x = z[0:2]
-            reported, cuts = _edge_force(row, h_rigid + cos * x[0] + sin * x[1], k)
+            reported, cuts = row.force(h_rigid + row.normal @ x)
             iterations += 1
         if regeneration:
-            w[p] = np.where(cuts, -(cos * x[0] + sin * x[1]), np.where(row[2], h_rigid, 0.0))
+            w[p] = np.where(cuts, -(row.normal @ x), h_rigid)
         force[n] = reported
         disp[n] = x
-        drive_prev = drive
+        f_prev = drive
     t_int = np.arange(n_steps + 1) * dt
     return _summarise(t_int, force, disp, geo.tooth_period, m, c, fs, duration,
                       iterations / n_steps, unconverged, iterate, regeneration, window)

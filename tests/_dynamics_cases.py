@@ -138,9 +138,20 @@ def table(rows: list[tuple[str, Case]]) -> str:
     return "\n".join(lines)
 
 
+def caveat(cases: list[Case]) -> str:
+    """How often the averaged eigen verdict and the Floquet verdict differ."""
+    eig = np.array([c.eigen_stable for c in cases])
+    grows = np.array([c.floquet_growth > 0 for c in cases])
+    return (f"{len(cases)} candidates: averaged-stable {eig.sum()}, of which Floquet-unstable "
+            f"{(grows & eig).sum()}; averaged-unstable {(~eig).sum()}, of which Floquet-stable "
+            f"{(~grows & ~eig).sum()}")
+
+
 if __name__ == "__main__":
     low = candidates(40, [1000.0])
     high = candidates(40, [4000.0, 6000.0, 8000.0], seed=SEED + 1)
+    print("1000 rpm: " + caveat(low))
+    print(">= 4000 rpm: " + caveat(high))
     print("1000 rpm, Floquet-selected:")
     print(table([("", c) for c in pick(low, "floquet", 4)]))
     print("\n>= 4000 rpm, eigen-selected:")
