@@ -409,11 +409,11 @@ def test_bad_cut_raises_input_error(case1_cut, change, match):
 
 
 @pytest.mark.parametrize("build, match", [
-    (lambda r, p: PointModel(r, p, criterion="floquet"), "floquet comes with"),
+    (lambda r, p: PointModel(r, p, criterion="nyquist"), "'nyquist' is not one of eigen, floquet"),
     (lambda r, p: PointModel(r, p, process_model="tlusty"), "process model: 'tlusty'"),
     (lambda r, p: PointModel(r, p, mass_model="lumped"), "mass model: 'lumped'"),
     (lambda r, p: point_function(r, outputs=("force_o", "nope")), r"outputs: unknown \['nope'\]"),
-], ids=["criterion-floquet", "process-tlusty", "mass-lumped", "unknown-output"])
+], ids=["criterion-nyquist", "process-tlusty", "mass-lumped", "unknown-output"])
 def test_bad_model_choice_raises_input_error(robot, params, build, match):
     with pytest.raises(InputError, match=match):
         build(robot, params)
