@@ -27,7 +27,13 @@ from robot_io import _gcode_words as W
 from robot_io._gcode_arcs import arc
 from robot_io._gcode_cycles import canned_cycle, group0_move
 from robot_io._gcode_moves import START_GIVEN, START_PREVIOUS, START_UNKNOWN, MoveStore
-from robot_io._gcode_plain import MIN_RUN, execute_plain, plain_spans, scan_plain_lines
+from robot_io._gcode_plain import (
+    MIN_RUN,
+    PlainLines,
+    execute_plain,
+    plain_spans,
+    scan_plain_lines,
+)
 from robot_io._gcode_state import DEG, PLANES, ModalState
 from robot_io.rotary import TrunnionKinematics, make_rotary_kinematics
 from robot_io.toolpath import SourceRef, Toolpath, ToolpathError, ToolpathWarning
@@ -120,8 +126,20 @@ class _Run:
         # the bulk path needs runs of MIN_RUN lines and no rotary kinematics (see _gcode_plain)
         bulk = plain and nlines >= MIN_RUN and self.kin is None
         scan = scan_plain_lines(text, nlines, MIN_RUN) if bulk else None
+        done = 0 if scan is None else self.read_runs(scan, lines)
+        for i in range(done, nlines):
+            self.read_line(i + 1, lines[i])
+        if self.after_end:
+            self.skipped["after_program_end"] += self.after_end
+            self.warn(0, "after_program_end", f"{self.after_end} line(s) after M2/M30 ignored "
+                      "(the machine stops at the program end)", line=self.end_line)
+        return self.finish(nlines)
+
+    def read_runs(self, scan: PlainLines, lines: list[str]) -> int:
+        """Read up to the end of the last run of plain lines: the runs in bulk, the lines
+        between them (and any line a run stops at) one by one; returns the next line index."""
         done = 0
-        for a, b in ([] if scan is None else plain_spans(scan, MIN_RUN)):
+        for a, b in plain_spans(scan, MIN_RUN):
             for i in range(done, a):
                 self.read_line(i + 1, lines[i])
             while a < b:
@@ -131,13 +149,7 @@ class _Run:
                     c += 1
                 a = c
             done = b
-        for i in range(done, nlines):
-            self.read_line(i + 1, lines[i])
-        if self.after_end:
-            self.skipped["after_program_end"] += self.after_end
-            self.warn(0, "after_program_end", f"{self.after_end} line(s) after M2/M30 ignored "
-                      "(the machine stops at the program end)", line=self.end_line)
-        return self.finish(nlines)
+        return done
 
     def read_line(self, number: int, raw: str) -> None:
         """Read and execute line ``number`` (1-based) as written."""
