@@ -27,6 +27,7 @@ Layers:
 from __future__ import annotations
 
 import logging
+import select
 import socket
 import struct
 import threading
@@ -69,6 +70,9 @@ _HEADER = struct.Struct("!HHB")  # msg_id, body_len, function
 _U16 = struct.Struct("!H")
 _TRAILER_TAG = b"\x00\x01"
 _TRAILER_BYTES = 3
+#: While idle the client looks at its socket this often, so a closed server is noticed within this
+#: time rather than at the next poll [s].
+_IDLE_CHECK_S = 0.02
 
 
 @dataclass(frozen=True)
@@ -273,6 +277,17 @@ class KvpConnection:
             raise LinkError("kvp", f"server refused {name} = {value!r} (status 0)")
         return reply.value or ""
 
+    def check_idle(self) -> None:
+        """Raise ``ConnectionError`` if the server closed the connection, :class:`ProtocolError` if it
+        sent bytes nobody asked for (the stream is then out of step); return at once otherwise."""
+        readable, _, _ = select.select([self._sock], [], [], 0.0)
+        if not readable:
+            return
+        data = self._sock.recv(1, socket.MSG_PEEK)  # readable: does not block
+        if not data:
+            raise ConnectionError("server closed the connection")
+        raise ProtocolError("kvp", "unsolicited bytes from the server", 1)
+
     def ping(self) -> bool:
         """Keep-alive: read ``PING``, expect ``PONG``."""
         reply = self.request(FN_READ, "PING")
@@ -442,7 +457,9 @@ class KvpClient:
                     left = next_poll - time.monotonic()
                     if left <= 0:
                         break
-                    self._wake.wait(left)
+                    self._wake.wait(min(left, _IDLE_CHECK_S))
+                    if self._wanted in (None, self._written, self._refused):
+                        conn.check_idle()  # notice a lost server between polls
             if todo is not None:
                 reply = self._timed(conn, FN_WRITE, str(todo))
                 if not reply.ok:

@@ -139,16 +139,21 @@ class KvpSimServer:
     def stop(self) -> None:
         """Close the listener and every client, join all threads; idempotent."""
         self._stop.set()
+        if self._listener is not None:
+            try:  # stop listening now: new connections are refused, accept() wakes up
+                self._listener.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
         if self._accept_thread is not None:
             self._accept_thread.join()
             self._accept_thread = None
+        if self._listener is not None:
+            self._listener.close()
+            self._listener = None
         with self._lock:
             clients = list(self._clients)
         for t in clients:
             t.join()
-        if self._listener is not None:
-            self._listener.close()
-            self._listener = None
 
     def __enter__(self) -> KvpSimServer:
         return self.start()

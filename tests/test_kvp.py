@@ -345,6 +345,21 @@ def test_client_reconnects_after_server_restart_on_the_same_port():
         srv.stop()
 
 
+def test_idle_client_notices_a_lost_server_before_its_next_poll():
+    srv = KvpSimServer().start()
+    link = KvpClient(*srv.address, poll_s=30.0, backoff_initial_s=0.01, backoff_max_s=0.05)
+    try:
+        assert link.wait_connected() and link.set_override(60).ok and link.flush()
+        srv.stop()
+        t0 = time.monotonic()
+        assert wait_for(lambda: not link.connected, 1.0)  # far sooner than the 30 s poll
+        assert time.monotonic() - t0 < 1.0
+        assert "closed" in link.stats.last_error or "connect" in link.stats.last_error
+    finally:
+        link.close()
+        srv.stop()
+
+
 def test_client_backs_off_exponentially_and_bounded(monkeypatch):
     import robot_io.kvp as kvp
 
