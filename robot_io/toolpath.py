@@ -277,28 +277,27 @@ class MoveList(Sequence[Move]):
         try:
             if self._lists is None:
                 self._lists = (*(c.tolist() for c in self._cols), list(self._ends))
-            kinds, lines, columns, feeds, durations, spindles, tools, starts, rows = self._lists
             moves, sparse, file, order = self._moves, self._sparse, self._file, _KIND_ORDER
             new, setattr_ = _OBJ_NEW, _OBJ_SET
-            for i in range(len(moves)):
-                if moves[i] is not None:
-                    continue
-                if i in sparse:
-                    self._build(i)
-                    continue
-                src = new(SourceRef)
-                setattr_(src, "__dict__", {"file": file, "line": lines[i], "column": columns[i]})
-                feed, duration, spindle, tool = feeds[i], durations[i], spindles[i], tools[i]
-                mv = new(Move)
-                setattr_(mv, "__dict__", {
-                    "kind": order[kinds[i]],
-                    "start": (rows[i - 1] if i else None) if starts[i] == 1 else None,
-                    "end": rows[i], "source": src, "feed": None if feed != feed else feed,
-                    "duration": None if duration != duration else duration, "center": None,
-                    "normal": None, "turns": 0, "tool_axis": None,
-                    "spindle_rpm": None if spindle != spindle else spindle,
-                    "tool": None if tool < 0 else tool, "extra": {}})
-                moves[i] = mv
+            prev = None
+            for i, (kind, line, column, feed, duration, spindle, tool, start, end) in enumerate(
+                    zip(*self._lists, strict=True)):
+                if moves[i] is None:
+                    if i in sparse:
+                        self._build(i)
+                    else:
+                        src = new(SourceRef)
+                        setattr_(src, "__dict__", {"file": file, "line": line, "column": column})
+                        mv = new(Move)
+                        setattr_(mv, "__dict__", {
+                            "kind": order[kind], "start": prev if start == 1 else None,
+                            "end": end, "source": src, "feed": None if feed != feed else feed,
+                            "duration": None if duration != duration else duration,
+                            "center": None, "normal": None, "turns": 0, "tool_axis": None,
+                            "spindle_rpm": None if spindle != spindle else spindle,
+                            "tool": None if tool < 0 else tool, "extra": {}})
+                        moves[i] = mv
+                prev = end
         finally:
             if was_enabled:
                 gc.enable()

@@ -694,6 +694,11 @@ def test_move_list_reads_like_a_list() -> None:
     assert moves[40].feed == pytest.approx(100 * MM / 60) and moves[0].feed is None
     with pytest.raises(IndexError):
         moves[41]
+    # a move built on its own is the one iteration hands out later, and shares its end array
+    again = read_gcode_text(text).moves
+    m5 = again[5]
+    built = list(again)
+    assert built[5] is m5 and built[6].start is m5.end and _same(built, list(moves))
     assert "41 moves" in repr(moves)
     empty = read_gcode_text("G21\n").moves
     assert len(empty) == 0 and list(empty) == [] and empty == []
