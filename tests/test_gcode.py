@@ -692,6 +692,10 @@ def test_move_list_reads_like_a_list() -> None:
     np.testing.assert_array_equal(moves.ends, np.array([m.end for m in moves]))
     assert not moves.ends.flags.writeable
     assert moves[40].feed == pytest.approx(100 * MM / 60) and moves[0].feed is None
+    m = moves[40]   # plain Python scalars, as the interpreter makes them
+    assert type(m.feed) is float and type(m.source.line) is int and type(m.source.column) is int
+    assert m.spindle_rpm is None and m.tool is None and m.extra == {} and m.turns == 0
+    assert m.end.tolist() == [39 * MM, 4 * MM, 0.0] and m.kind == MoveKind.LINEAR
     with pytest.raises(IndexError):
         moves[41]
     # a move built on its own is the one iteration hands out later, and shares its end array
