@@ -294,7 +294,8 @@ def report() -> str:
               f"{100 * defl.reduction_iterated:.3f} % |",
               "", f"The demo's programmed cut at its worst sample (a_p {wall['a_p_programmed_mm']:.1f} mm)"
               f" chatters in the model: Floquet ρ = {wall['rho_programmed']:.3f}; critical a_p "
-              f"{wall['a_p_critical_mm']:.2f} mm. Simulated below at 40 % of it (regeneration lowers the boundary).", "",
+              f"{wall['a_p_critical_mm']:.2f} mm. Simulated below at 40 % of it (regeneration "
+              "lowers the boundary).", "",
               f"| simulated cut at the demo's worst sample ({wall['mode']}, a_e "
               f"{wall['a_e_mm']:.2f} mm, a_p {wall['a_p_mm']:.2f} mm, {wall['feed_mm_s']:.0f} mm/s, "
               f"growth {wall['growth_rate']:+.2f} 1/s, F_PV/F_peak {100 * wall['f_pv_ratio']:.1f} %)"

@@ -451,15 +451,18 @@ def simulate(structure: Structure, cut: Cut, feed: float, coefficients, helix_an
         base = phi_d @ z + g0_3 @ f_prev
         f, cuts = row.force(h_rigid)
         if iterate:
-            for it in range(1, MAX_ITERATIONS + 1):
+            it = 0
+            while True:
+                it += 1
                 x = base[0:2] + g1x_3 @ f
                 f_new, cuts = row.force(h_rigid + row.normal @ x)
                 d = f_new - f
                 f = f_new
                 if math.sqrt(d @ d) <= FORCE_TOLERANCE * max(math.sqrt(f @ f), FORCE_FLOOR):
                     break
-            else:
-                unconverged += 1
+                if it == MAX_ITERATIONS:
+                    unconverged += 1
+                    break
             iterations += it
             drive = f
             z = base + g1_3 @ drive

@@ -6,8 +6,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from models import Cut, ModelParameters, load_material, load_robot, load_tool
-from models import cutting
+from models import Cut, ModelParameters, cutting, load_material, load_robot, load_tool
 from models.dynamics import (
     Structure,
     cutter_geometry,

@@ -7,13 +7,13 @@ verdict and the vibration frequency.
 
 from __future__ import annotations
 
+import _dynamics_cases as cases
 import numpy as np
 import pytest
 
 from models import Cut, load_material, load_tool
 from models.dynamics import Structure, modal_damping
 from models.floquet import floquet, floquet_margin, path_floquet
-import _dynamics_cases as cases
 
 MAT = load_material("al6061")
 TOOL = load_tool("em25_2f")
