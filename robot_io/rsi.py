@@ -408,6 +408,12 @@ class RsiServer:
             return self._last_rob
 
     @property
+    def peer(self) -> tuple[str, int] | None:
+        """Address the last valid ``<Rob>`` came from (the controller), ``None`` before the first."""
+        with self._lock:
+            return self._peer
+
+    @property
     def last_receive_time(self) -> float:
         """``time.monotonic()`` of the last valid ``<Rob>`` (−inf before the first) [s]."""
         with self._lock:
