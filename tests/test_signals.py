@@ -67,3 +67,49 @@ def test_signals_are_reproducible_with_the_seed(sim):
 def test_signals_reject_bad_parameters(sim, kwargs, match):
     with pytest.raises(InputError, match=match):
         synthetic_signals(sim, np.random.default_rng(0), **kwargs)
+
+
+def test_simulated_signals_tune_and_trip_the_wavelet_detector():
+    """SPEC §6 (b), (c): σ of the stable-cut band from a simulated stable strain signal; a second
+    record of the same cut stays under the chart's limit, a chattering cut (a depth past the
+    boundary) trips it within 1.5 s. (σ belongs to its cut: a deeper stable cut has a larger band.)"""
+    from models import ModelParameters, load_robot
+    from models.dynamics import pose_structure
+    from planner.detector import Detector, select_level
+
+    robot = load_robot()
+    params = ModelParameters(joint_stiffness=robot.data.joint_stiffness,
+                             coefficients=MAT.coefficients(), spindle_mass=robot.data.spindle_mass,
+                             spindle_com=robot.data.spindle_com, tcp=np.array([0.32, 0.0, 0.0]))
+    q = np.radians([-96.42, -29.26, 99.08, -9.95, 83.23, -160.5])
+    rpm, fs = 4000.0, 5000.0
+    feed = 0.1e-3 * 2 * rpm / 60
+
+    def record(a_p, seed):
+        cut = Cut(np.array([0.0, 1.0, 0.0]), np.array([1.0, 0.0, 0.0]), 6e-3, a_p, "up",
+                  rpm * np.pi / 30, 2, TOOL.radius)
+        st = pose_structure(robot, params, q, cut, feed)
+        sim = simulate(st, cut, feed, MAT, TOOL.helix_angle, duration=2.5, fs=fs)
+        return sim, st, synthetic_signals(sim, np.random.default_rng(seed), force_noise=0.3)
+
+    sim_a, st, stable_a = record(0.3e-3, 1)
+    sim_b, _, stable_b = record(0.3e-3, 2)  # the same cut, another noise record
+    sim_c, _, chatter = record(1.5e-3, 3)
+    assert sim_a.growth_rate < 0 and sim_b.growth_rate < 0 and sim_c.growth_rate > 0
+    choice = select_level(fs, float(st.natural_frequencies_hz[0]), 1.0 / sim_a.tooth_period)
+    learner = Detector(fs, choice)
+    sigma = learner.learn(stable_a.strain)
+    assert sigma > 0
+
+    def first_alarm(sig):
+        det = Detector(fs, choice, sigma=sigma)
+        chunk = int(0.012 * fs)  # the KR C2's 12 ms cycle
+        for i in range(0, sig.time.size - chunk + 1, chunk):
+            out = det.update(sig.time[i:i + chunk], sig.strain[i:i + chunk])
+            if out.alarm:
+                return out.t_s
+        return None
+
+    assert first_alarm(stable_b) is None
+    t_alarm = first_alarm(chatter)
+    assert t_alarm is not None and t_alarm < 1.5
