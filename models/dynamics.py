@@ -24,8 +24,9 @@ surface is smooth and stays where it was at the start — SPEC's x_prev = 0 meas
 static equilibrium (``initial="static"``, the default) or from the nominal path (``"rest"``) — and
 the model is the time-periodic one whose average is the ``oriented`` process stiffness of SPEC §5.
 (Why not the nominal path with ``"static"``: on the KR 210 the static deflection under the mean
-force, K_tc a_p c/K, is several feeds per tooth; against a surface at the nominal path the tool
-would simply leave the cut. The previous pass was cut at the deflected position too.)
+force is several feeds per tooth — about K_tc a_p/K ≈ 4 c for the thesis's cut — and against a
+surface at the nominal path the tool would simply leave the cut; the previous pass was cut at the
+deflected position too.)
 
 **Integrator.** The linear structure is discretised exactly for a force that varies linearly over a
 step (first-order hold, matrix exponential). Each step: the force with the rigid chip (tool at its
@@ -498,11 +499,6 @@ def process_stiffness_series(geo: CutterGeometry, coefficients) -> np.ndarray:
     t = np.stack([-geo.sin, geo.cos])  # t(φ) in (X_o, Z_o)
     nn = np.stack([geo.cos, geo.sin])
     return -np.einsum("ips,jps,ps->pij", k_tc * t + k_rc * nn, nn, b)
-
-
-def _mean_process_stiffness(geo: CutterGeometry, k: list[float]) -> np.ndarray:
-    """Tooth-period mean of :func:`process_stiffness_series` [N/m], (2, 2)."""
-    return process_stiffness_series(geo, k).mean(axis=0)
 
 
 def _summarise(t_int, force, disp, period, m, c, fs, duration, iterations_mean, unconverged,
