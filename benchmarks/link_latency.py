@@ -138,7 +138,8 @@ def kvp_latency(n: int = 2000) -> dict:
     for count_trailer in (True, False):
         srv = _Child(_kvp_server_proc, count_trailer)
         try:
-            with KvpConnection(*srv.recv(), timeout=1.0) as c:
+            host, port = srv.recv()
+            with KvpConnection(host, port, timeout=1.0) as c:
                 w, wr = [], []
                 for i in range(n):
                     value = str(i % 101)
@@ -198,7 +199,8 @@ def rsi_latency(seconds: float = 4.0) -> dict:
         out["baseline_udp_echo"] = _summary(times)
     finally:
         echo.close()
-    runs = [(f"{c * 1e3:.0f} ms", c, None, False) for c in CYCLES_S]
+    runs: list[tuple[str, float, float | None, bool]] = [(f"{c * 1e3:.0f} ms", c, None, False)
+                                                         for c in CYCLES_S]
     # The supervisor shares the server's process: a CPU-bound Python thread beside the server holds
     # the GIL for up to sys.getswitchinterval() (5 ms by default) at a time.
     # RsiProcessServer moves the server out of the caller's process.

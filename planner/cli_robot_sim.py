@@ -82,11 +82,11 @@ def run(args: argparse.Namespace) -> int:
     """Run the simulated controller; 0 on Ctrl-C or at ``--duration-s``, 1 after RSIBad."""
     _check(args)
     speed = args.programmed_speed_mm_s * 1e-3
+    peer: KvpSimServer | RsiSimController
     if args.kind == "kvp":
-        peer: KvpSimServer | RsiSimController = KvpSimServer(args.host, args.port, args.count_trailer,
-                                                             programmed_speed=speed)
-        peer.start()
-        host, port = peer.address
+        server = KvpSimServer(args.host, args.port, args.count_trailer, programmed_speed=speed)
+        peer = server.start()
+        host, port = server.address
         print(f"simulated KukaVarProxy listening on {host}:{port} (body_len "
               f"{'counts' if args.count_trailer else 'excludes'} the trailer); Ctrl-C to stop", flush=True)
     else:

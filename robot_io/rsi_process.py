@@ -139,8 +139,10 @@ class RsiProcessServer:
     def stats(self) -> LinkStats:
         b = self._block
         err = bytes(self._err.value).decode("ascii", "replace")
-        return LinkStats(*(int(b[_IDX[k]]) for k in ("sent", "replies", "malformed", "late", "timeouts",
-                                                     "reconnects")), last_error=err)
+        return LinkStats(sent=int(b[_IDX["sent"]]), replies=int(b[_IDX["replies"]]),
+                         malformed=int(b[_IDX["malformed"]]), late=int(b[_IDX["late"]]),
+                         timeouts=int(b[_IDX["timeouts"]]), reconnects=int(b[_IDX["reconnects"]]),
+                         last_error=err)
 
     @property
     def connected(self) -> bool:
