@@ -95,7 +95,7 @@ def _closed_loop_run(plan, sigma, cfg, sc, steps: int):
     return sup, rep
 
 
-def step_latency(steps: int, folder: Path, repeats: int = 3) -> dict:
+def step_latency(steps: int, folder: Path, repeats: int = 5) -> dict:
     n_sec = 40
     secs = [{"length_m": 0.1, "feed_mm_s": 8.0 if i % 2 == 0 else 6.0} for i in range(n_sec)]
     plan = load_plan(make_plan(folder / "long", secs, step_m=0.005))
@@ -260,7 +260,7 @@ def _verdict(worst_ms: float | None) -> str:
 
 
 def run(steps: int = 100_000, seeds: int = 8, real_time_s: float = 5.0, log=print,
-        repeats: int = 3) -> dict:
+        repeats: int = 5) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         log("supervisor: step latency ...")
@@ -278,7 +278,7 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--steps", type=int, default=100_000, help="steps timed (default 100000)")
     ap.add_argument("--seeds", type=int, default=8, help="closed-loop runs per wavelet (default 8)")
     ap.add_argument("--real-time-s", type=float, default=5.0, help="real-time loop run per robot [s]")
-    ap.add_argument("--repeats", type=int, default=3, help="identical repeats of the timed run")
+    ap.add_argument("--repeats", type=int, default=5, help="identical repeats of the timed run")
     ap.add_argument("--json", action="store_true", help="print JSON instead of a table")
     args = ap.parse_args(argv)
     r = run(args.steps, args.seeds, args.real_time_s, log=lambda s: print(s, file=sys.stderr),

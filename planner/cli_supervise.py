@@ -105,11 +105,14 @@ def _scenario(args: argparse.Namespace) -> CutScenario:
 
 def simulated_sigma(plan, fs_hz: float, scenario: CutScenario, config: SupervisorConfig,
                     duration_s: float = 2.0) -> float:
-    """σ of the band in a simulated stable cut of ``plan`` (no onset, no loss) at 100 % override."""
+    """σ of the band in a simulated stable cut (no onset, no loss) at 100 % override, from the
+    start of the plan's first cut section (air and rapids carry no cutting force)."""
     clk = VirtualClock()
     stable = CutScenario(**{**scenario.__dict__, "onset_s": None, "loss_s": None,
                             "seed": scenario.seed + 1})
-    cut = SimulatedCut(plan, lambda: 100.0, fs_hz, stable, clock=clk)
+    cuts = [s for s in plan.sections if s.get("kind", "cut") == "cut"]
+    start = float(cuts[0]["s_start_m"]) if cuts else 0.0
+    cut = SimulatedCut(plan, lambda: 100.0, fs_hz, stable, clock=clk, start_s=start)
     ts, ys = [], []
     for _ in range(int(duration_s / 0.01)):
         clk.sleep(0.01)
@@ -143,7 +146,8 @@ def run(args: argparse.Namespace) -> int:
             from planner.sim_cell import SimCell
 
             fs = fs or 10_000.0
-            cell = SimCell(plan, args.sim_protocol, fs, scenario, cycle_s=cycle_s)
+            cell = SimCell(plan, args.sim_protocol, fs, scenario, cycle_s=cycle_s,
+                           start_s=args.start_mm * 1e-3)
             closers.append(cell)
             source, link, cut, before_step = cell.source, cell.link, cell.cut, cell.daq
         else:
@@ -158,7 +162,7 @@ def run(args: argparse.Namespace) -> int:
                     v = link.read_override()
                     return 100.0 if v is None else float(v)
 
-                cut = SimulatedCut(plan, applied, fs, scenario, clock=clock)
+                cut = SimulatedCut(plan, applied, fs, scenario, clock=clock, start_s=args.start_mm * 1e-3)
                 source = cut
             else:
                 source, fs = _make_source(args, fs, closers)
@@ -223,10 +227,12 @@ def _make_link(args: argparse.Namespace, cycle_s: float, closers: list):
         closers.append(client)
         return client
     if args.robot.startswith("rsi://"):
-        from robot_io.rsi import RsiServer
+        # the RSI server of a real cell runs in its own process: its replies are due inside the
+        # controller's cycle whatever this process's GIL is doing
+        from robot_io.rsi_process import RsiProcessServer
 
         host, port = _endpoint(args.robot, "rsi", "--robot")
-        server = RsiServer(host, port)
+        server = RsiProcessServer(host, port, cycle_ms=int(round(cycle_s * 1000)))
         closers.append(server)
         return server
     raise InputError("--robot", f"{args.robot!r}: use sim, kvp://HOST:PORT or rsi://BIND_HOST:PORT")

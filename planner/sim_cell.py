@@ -41,11 +41,12 @@ class SimCell:
         scenario: the simulated cut.
         cycle_s: RSI cycle [s] (0.004 or 0.012).
         kvp_timeout_s: KvpClient reply timeout [s].
+        start_s: arc length where the simulated cut starts [m].
     """
 
     def __init__(self, plan: Plan, robot: str = "kvp", fs_hz: float = 10_000.0,
                  scenario: CutScenario | None = None, cycle_s: float = 0.004,
-                 kvp_timeout_s: float = 0.1) -> None:
+                 kvp_timeout_s: float = 0.5, start_s: float = 0.0) -> None:
         if robot not in ROBOTS:
             raise ValueError(f"robot {robot!r}: use one of {ROBOTS}")
         self.robot = robot
@@ -63,7 +64,7 @@ class SimCell:
             self.rsi_controller = RsiSimController(self.link.address, cycle_s=cycle_s).start()
         self.source = UdpSignalSource()
         self._sender = UdpSignalSender(*self.source.address)
-        self.cut = SimulatedCut(plan, self.applied_override, fs_hz, scenario)
+        self.cut = SimulatedCut(plan, self.applied_override, fs_hz, scenario, start_s=start_s)
 
     def applied_override(self) -> float:
         """The override the simulated controller applies now [percent]."""
