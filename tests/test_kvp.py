@@ -175,6 +175,18 @@ def test_sim_server_answers_pipelined_requests_in_order(count_trailer):
         assert (st.requests, st.replies, st.malformed, st.unsupported, st.ov_pro_writes) == (7, 7, 0, 1, 1)
 
 
+def test_sim_server_reassembles_requests_split_across_segments():
+    req = pack_request(KvpRequest(9, FN_WRITE, "$OV_PRO", "33")) + pack_request(KvpRequest(10, FN_READ,
+                                                                                         "$OV_PRO"))
+    with KvpSimServer() as srv, socket.create_connection(srv.address, timeout=2.0) as s:
+        s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        for i in range(len(req)):
+            s.send(req[i:i + 1])
+            time.sleep(0.0005)
+        assert [(r.msg_id, r.value) for r in (read_reply(s), read_reply(s))] == [(9, "33"), (10, "33")]
+        assert srv.stats.malformed == 0
+
+
 def test_sim_server_override_drives_the_path_speed():
     with KvpSimServer(programmed_speed=2e-3, tau=0.02) as srv, KvpConnection(*srv.address) as conn:
         assert srv.path_speed() == pytest.approx(2e-3)
