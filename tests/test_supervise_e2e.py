@@ -195,6 +195,26 @@ def test_cli_supervise_udp_stream_to_kvp(tmp_path, capsys):
         assert srv.override_percent == pytest.approx(100.0)
 
 
+def test_cli_supervise_replays_a_recorded_file(tmp_path, capsys):
+    # 1.6 s of a stable cut in a CSV without a time column, then 0.6 s of chatter at f_c: the
+    # first 0.8 s teach sigma, the chatter must be caught; the override goes to the simulated KVP
+    make_plan(tmp_path / "plan", CUT)
+    rng = np.random.default_rng(5)
+    t = np.arange(int(2.2 * FS)) / FS
+    y = 140 + 40 * np.sin(2 * np.pi * 33.3 * t) + 0.7 * np.sin(2 * np.pi * 11 * t) + rng.normal(0, 0.3, t.size)
+    y += np.where(t > 1.6, 20.0, 0.0) * np.sin(2 * np.pi * 10.98 * t)
+    rec = tmp_path / "record.csv"
+    rec.write_text("force_N\n" + "\n".join(f"{v:.4f}" for v in y) + "\n", encoding="utf-8")
+    rc = main(["supervise", "--plan", str(tmp_path / "plan"), "--signal", str(rec), "--fs-hz", "10000",
+               "--robot", "sim", "--stable-s", "0.8", "--json"])
+    assert rc == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["sigma"] is not None and out["level"] == 9
+    assert out["duration_s"] == pytest.approx(2.2, abs=0.3)  # the file's length
+    assert len(out["episodes"]) >= 1 and out["episodes"][0]["direction"] == -1
+    assert out["final_override"] < 100.0
+
+
 @pytest.mark.parametrize("argv,match", [
     (["--signal", "udp://nohost", "--robot", "sim"], "udp://HOST:PORT"),
     (["--signal", "sim", "--robot", "ftp://x:1"], "use sim, kvp://"),
