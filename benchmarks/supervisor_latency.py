@@ -59,6 +59,8 @@ THESIS_DETECTION_S = 0.005
 THESIS_CLOSED_LOOP_S = (0.27, 0.30)
 WAVELETS = ("db2", "db4", "db8")
 BASELINE_STEPS = 5000
+WALL_NOT_MET = "NOT met on this shared 2-core VM (a real-time host needs a dedicated core)"
+OVERRUNS_SEEN = "overruns seen (GIL shared with the sims)"
 
 
 class _Link:
@@ -226,7 +228,7 @@ def markdown(r: dict) -> str:
         f"| same steps, every run, wall time as measured (preemption and VM steal included) | "
         f"{w['p50_ms']:.3f} / {w['p99_ms']:.3f} / {w['p999_ms']:.3f} / {w['max_ms']:.3f} ms | same | "
         f"worst = {s['of_cycle_wall']['4ms']:.0%} of 4 ms: "
-        f"{'met' if ok_wall else 'NOT met on this shared 2-core VM (a real-time host needs a dedicated core)'} |",
+        f"{'met' if ok_wall else WALL_NOT_MET} |",
         (f"| detection computation: the steps that raise an alarm ({s['alarm_steps']:,}), per-step "
          f"minimum, p50 / worst | {s['alarm_step']['p50_ms']:.3f} / {s['alarm_step']['max_ms']:.3f} ms"
          f" | thesis ≈ 5 ms (read as computation) | "
@@ -244,7 +246,7 @@ def markdown(r: dict) -> str:
         lines.append(f"| whole loop iteration in real time, {robot.upper()} sim + UDP DAQ in the same "
                      f"process (p99 / worst; overruns) | {v['iteration_p99_ms']:.3f} / "
                      f"{v['iteration_max_ms']:.3f} ms; {v['overruns']} of {v['steps']} | inside the "
-                     f"cycle | {'met' if v['overruns'] == 0 else 'overruns seen (GIL shared with the sims)'} |")
+                     f"cycle | {'met' if v['overruns'] == 0 else OVERRUNS_SEEN} |")
     for w, v in r["closed_loop"].items():
         d, o, st, q = v["detection_delay_ms"], v["onset_to_alarm_ms"], v["settling_ms"], v["quiet_ms"]
         tag = " (default)" if w == "db4" else ""

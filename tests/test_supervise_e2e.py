@@ -201,7 +201,8 @@ def test_cli_supervise_replays_a_recorded_file(tmp_path, capsys):
     make_plan(tmp_path / "plan", CUT)
     rng = np.random.default_rng(5)
     t = np.arange(int(2.2 * FS)) / FS
-    y = 140 + 40 * np.sin(2 * np.pi * 33.3 * t) + 0.7 * np.sin(2 * np.pi * 11 * t) + rng.normal(0, 0.3, t.size)
+    y = (140 + 40 * np.sin(2 * np.pi * 33.3 * t) + 0.7 * np.sin(2 * np.pi * 11 * t)
+         + rng.normal(0, 0.3, t.size))
     y += np.where(t > 1.6, 20.0, 0.0) * np.sin(2 * np.pi * 10.98 * t)
     rec = tmp_path / "record.csv"
     rec.write_text("force_N\n" + "\n".join(f"{v:.4f}" for v in y) + "\n", encoding="utf-8")
