@@ -384,7 +384,8 @@ def _rows(geo: CutterGeometry, c: float, k: list[float]) -> list[_Row]:
 def simulate(structure: Structure, cut: Cut, feed: float, coefficients, helix_angle: float,
              duration: float = 2.0, fs: float = 5000.0, iterate: bool = True,
              regeneration: bool = True, slices: int = DEFAULT_SLICES, initial: str = "static",
-             steps_per_tooth: int | None = None, window: float = 0.5) -> SimulationResult:
+             steps_per_tooth: int | None = None, window: float = 0.5,
+             perturbation: float = 0.0) -> SimulationResult:
     """Simulate the cut on the 2-DOF structure (SPEC §6).
 
     Args:
@@ -399,16 +400,22 @@ def simulate(structure: Structure, cut: Cut, feed: float, coefficients, helix_an
         regeneration: the previous edge's surface (True) or the nominal surface (False).
         slices: axial slices.
         initial: ``"static"`` (start at the static equilibrium under the mean rigid-chip force,
-            with the surface cut there) or ``"rest"`` (x = 0, the nominal surface).
+            with the surface cut there: the entry transient of the periodic forces follows),
+            ``"rest"`` (x = 0, the nominal surface) or ``"periodic"`` (start on the tooth-periodic
+            motion of the linearised cut, with the surface it leaves: no entry transient, so a
+            small ``perturbation`` shows the Floquet growth or decay from the first period on).
         steps_per_tooth: integrator steps per tooth period (default from ``fs``).
         window: fraction of the run, at its end, over which F_peak, F_PV and the spectrum are taken.
+        perturbation: initial displacement [m] added along (X_o + Z_o)/√2.
     """
     if not (math.isfinite(feed) and feed > 0):
         raise InputError("feed", f"must be positive and finite, got {feed!r}")
     if not (math.isfinite(duration) and duration > 0 and math.isfinite(fs) and fs > 0):
         raise InputError("duration/fs", "duration and sample rate must be positive")
-    if initial not in ("static", "rest"):
-        raise InputError("initial", f"{initial!r} is not 'static' or 'rest'")
+    if initial not in ("static", "rest", "periodic"):
+        raise InputError("initial", f"{initial!r} is not 'static', 'rest' or 'periodic'")
+    if not math.isfinite(perturbation):
+        raise InputError("perturbation", f"must be finite, got {perturbation!r}")
     if not 0.0 < window <= 1.0:
         raise InputError("window", f"must lie in (0, 1], got {window!r}")
     k = _coefficient_list(coefficients)
@@ -432,12 +439,19 @@ def simulate(structure: Structure, cut: Cut, feed: float, coefficients, helix_an
     # where the edge left the cut, w grows by one more c sin φ (the older surface stays).
     w = [np.zeros(row.chip.shape) for row in rows]
     z = np.zeros(4)
-    if initial == "static":
+    if initial in ("static", "periodic"):
         mean = sum(row.force(row.chip)[0] for row in rows) / m
         # The surface was cut at the static position: the chip there is the rigid one, so the
         # equilibrium is K x = F̄(rigid chip).
         z[0:2] = np.linalg.solve(structure.stiffness, mean[[0, 2]])
         w = [-(row.normal @ z[0:2]) for row in rows]
+    if initial == "periodic":
+        orbit = _periodic_orbit(structure, cut, c, k, helix_angle, m, slices, z[0:2].copy(),
+                                regeneration)
+        if regeneration:  # the previous edge left the orbit's own surface
+            w = [-(row.normal @ orbit[p, 0:2]) for p, row in enumerate(rows)]
+        z = orbit[0].copy()
+    z[0:2] += perturbation * np.array([1.0, 1.0]) / math.sqrt(2.0)
     force = np.zeros((n_steps + 1, 3))
     disp = np.zeros((n_steps + 1, 2))
     disp[0] = z[0:2]
@@ -483,6 +497,43 @@ def simulate(structure: Structure, cut: Cut, feed: float, coefficients, helix_an
     t_int = np.arange(n_steps + 1) * dt
     return _summarise(t_int, force, disp, geo.tooth_period, m, c, fs, duration,
                       iterations / n_steps, unconverged, iterate, regeneration, window)
+
+
+def _periodic_orbit(structure: Structure, cut: Cut, c: float, k: list[float], helix_angle: float,
+                    steps: int, slices: int, x_static: np.ndarray,
+                    regeneration: bool) -> np.ndarray:
+    """States (x, ẋ) at the instants p·T/steps of the tooth-periodic motion, shape (steps, 4).
+
+    The linearised cut (every engaged edge in the cut) with the rigid-chip force F₀(t) at the
+    sub-step midpoints: M ÿ + C ẏ + (K − K_p(t)) y = F₀(t) − K x_s, y = x − x_s. Without
+    regeneration K_p(t) is the instantaneous process stiffness; with regeneration a T-periodic
+    motion leaves a surface that repeats it, the chip is the rigid one and K_p drops out. The
+    periodic solution is y(0) = (I − Φ)⁻¹ β, Φ and β the one-period map (exponential midpoint rule).
+    """
+    geo = cutter_geometry(cut, helix_angle, steps, slices, offset=0.5)
+    forcing = np.array([row.force(row.chip)[0][[0, 2]] for row in _rows(geo, c, k)])
+    forcing -= structure.stiffness @ x_static
+    kp = process_stiffness_series(geo, k) if not regeneration else np.zeros((steps, 2, 2))
+    m_inv = np.linalg.inv(structure.mass)
+    maps = []
+    for p in range(steps):
+        aug = np.zeros((6, 6))
+        aug[0:2, 2:4] = np.eye(2)
+        aug[2:4, 0:2] = -m_inv @ (structure.stiffness - kp[p])
+        aug[2:4, 2:4] = -m_inv @ structure.damping
+        aug[2:4, 4:6] = m_inv
+        e = scipy.linalg.expm(aug * geo.dt)
+        maps.append((e[0:4, 0:4], e[0:4, 4:6] @ forcing[p]))
+    phi, beta = np.eye(4), np.zeros(4)
+    for e, g in maps:
+        phi, beta = e @ phi, e @ beta + g
+    y = np.linalg.solve(np.eye(4) - phi, beta)
+    orbit = np.zeros((steps, 4))
+    for p, (e, g) in enumerate(maps):
+        orbit[p] = y
+        y = e @ y + g
+    orbit[:, 0:2] += x_static
+    return orbit
 
 
 def process_stiffness_series(geo: CutterGeometry, coefficients) -> np.ndarray:

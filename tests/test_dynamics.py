@@ -162,6 +162,7 @@ def test_stable_cut_settles_to_a_tooth_periodic_force():
     ({"initial": "hot"}, "initial"),
     ({"window": 0.0}, "window"),
     ({"duration": 0.01}, "two tooth periods"),
+    ({"perturbation": float("nan")}, "perturbation"),
 ])
 def test_simulate_rejects_bad_inputs(kwargs, match):
     mass = np.diag([200.0, 150.0])
