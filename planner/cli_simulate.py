@@ -49,6 +49,12 @@ def register(sub) -> None:
                            "force, the chip is updated once")
     g.add_argument("--no-regeneration", action="store_true",
                    help="smooth surface (no previous-flute waviness): the model Floquet judges")
+    g.add_argument("--initial", choices=("static", "rest", "periodic"), default="static",
+                   help="start at the static equilibrium (default: the entry transient follows), "
+                        "at rest on the nominal path, or on the tooth-periodic motion of the "
+                        "linearised cut (no entry transient; add --perturbation-um to see growth)")
+    g.add_argument("--perturbation-um", type=float, default=0.0,
+                   help="initial displacement along (X_o + Z_o)/sqrt(2) [um] (default 0)")
     g.add_argument("--damping-ratio", type=float, default=DEFAULT_DAMPING_RATIO,
                    help=f"modal damping ratio of both arm modes (default {DEFAULT_DAMPING_RATIO})")
     g.add_argument("--tool", default="em25_2f",
@@ -72,6 +78,8 @@ def _check(args: argparse.Namespace) -> None:
         raise InputError("--damping-ratio", f"must lie in [0, 1), got {args.damping_ratio}")
     if args.slices < 1:
         raise InputError("--slices", f"need at least 1, got {args.slices}")
+    if not math.isfinite(args.perturbation_um):
+        raise InputError("--perturbation-um", f"must be finite, got {args.perturbation_um}")
     if not (math.isfinite(args.noise_n) and args.noise_n >= 0):
         raise InputError("--noise-n", f"must be >= 0, got {args.noise_n}")
 
@@ -110,7 +118,8 @@ def run(args: argparse.Namespace) -> int:
     structure = pose_structure(model.robot, model.params, q, cut, feed, args.damping_ratio)
     sim = simulate(structure, cut, feed, model.params.coefficients, tool.helix_angle,
                    duration=args.duration_s, fs=args.fs_hz, iterate=args.iterate,
-                   regeneration=not args.no_regeneration, slices=args.slices)
+                   regeneration=not args.no_regeneration, slices=args.slices,
+                   initial=args.initial, perturbation=args.perturbation_um * 1e-6)
     fl = floquet(structure, cut, model.params.coefficients, tool.helix_angle, slices=args.slices)
     out = {
         "f_peak_N": sim.f_peak, "f_pv_N": sim.f_pv, "f_pv_over_f_peak": sim.dynamic_ratio,
@@ -126,6 +135,7 @@ def run(args: argparse.Namespace) -> int:
         "tooth_frequency_hz": 1.0 / sim.tooth_period, "feed_per_tooth_m": sim.feed_per_tooth,
         "iterate": sim.iterate, "regeneration": sim.regeneration,
         "damping_ratio": args.damping_ratio, "duration_s": args.duration_s, "fs_hz": args.fs_hz,
+        "initial": args.initial, "perturbation_um": args.perturbation_um,
         "window_start_s": sim.window_start, "warnings": list(point.warnings),
     }
     if args.out:

@@ -54,6 +54,8 @@ def test_simulate_first_iteration_and_no_regeneration_flags(capsys):
     first = _json(capsys, [*base, "--first-iteration", "--no-regeneration"])
     assert first["iterate"] is False and first["regeneration"] is False
     assert first["iterations_mean"] == 1.0
+    periodic = _json(capsys, [*base, "--initial", "periodic", "--perturbation-um", "0.01"])
+    assert periodic["initial"] == "periodic" and periodic["f_pv_over_f_peak"] < 0.05
     table = main(["simulate", *STABLE, "--duration-s", "0.3"])
     assert table == 0
     text = capsys.readouterr().out
@@ -65,6 +67,7 @@ def test_simulate_first_iteration_and_no_regeneration_flags(capsys):
     (["--fs-hz", "-5"], "--fs-hz"),
     (["--damping-ratio", "1.5"], "--damping-ratio"),
     (["--noise-n", "-1"], "--noise-n"),
+    (["--perturbation-um", "nan"], "--perturbation-um"),
 ])
 def test_simulate_user_errors_exit_2(capsys, flags, match):
     assert main(["simulate", *STABLE, *flags]) == 2
