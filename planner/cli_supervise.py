@@ -51,6 +51,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--robot", required=True, metavar="sim|kvp://HOST:PORT|rsi://BIND_HOST:PORT",
                    help="simulated controller over loopback, KukaVarProxy to connect to, or the RSI "
                         "server address to bind")
+    p.add_argument("--signal-column", metavar="NAME",
+                   help="CSV value column (default: the first non-time column; e.g. resultant_N "
+                        "for a `cctmill simulate --out` record)")
     p.add_argument("--log", metavar="events.jsonl", help="append every decision as JSON lines")
     p.add_argument("--fs-hz", type=float, help="sample rate [Hz] (files without a time column, sim; "
                                                "default 10000 for sim, from the stream for udp)")
@@ -257,7 +260,7 @@ def _make_source(args: argparse.Namespace, fs: float | None, closers: list):
         return src, fs
     from robot_io.signal_replay import ReplaySource
 
-    src = ReplaySource.from_file(args.signal, fs, realtime=True)
+    src = ReplaySource.from_file(args.signal, fs, column=args.signal_column, realtime=True)
     return src, src.fs_hz
 
 

@@ -182,9 +182,10 @@ class ReplaySource:
         self._i = 0
 
     @classmethod
-    def from_file(cls, path: str | os.PathLike, fs_hz: float | None = None, **kw) -> ReplaySource:
+    def from_file(cls, path: str | os.PathLike, fs_hz: float | None = None,
+                  column: str | None = None, **kw) -> ReplaySource:
         """Load ``path`` with :func:`load_signal` and replay it."""
-        t, v = load_signal(path, fs_hz)
+        t, v = load_signal(path, fs_hz, column)
         return cls(t, v, **kw)
 
     @property
