@@ -326,6 +326,28 @@ class Detector:
         self.sigma = sigma
         return sigma
 
+    def _allowance(self, t_s: np.ndarray, n: int, expected_mean: float | None) -> float:
+        if expected_mean is None or not math.isfinite(expected_mean) or n == 0:
+            return 0.0
+        tm, dm = self._model.push(t_s, np.full(n, float(expected_mean)))
+        if dm.size:
+            self._recent.append((float(tm[-1]), float(np.max(np.abs(dm)))))
+        horizon = float(t_s[-1]) - TRANSIENT_SLACK_S
+        while self._recent and self._recent[0][0] < horizon:
+            self._recent.popleft()
+        return TRANSIENT_GAIN * max((a for _, a in self._recent), default=0.0)
+
+    def observe(self, t_s: np.ndarray, values: np.ndarray,
+                expected_mean: float | None = None) -> np.ndarray:
+        """Feed samples without judging them (a learning window); return the new band values.
+
+        Both band filters (signal and expected mean) stay warm, so the chart is ready the moment
+        σ is known.
+        """
+        _, d = self.monitor.push(t_s, values)
+        self._allowance(t_s, np.shape(values)[0], expected_mean)
+        return d
+
     def update(self, t_s: np.ndarray, values: np.ndarray,
                expected_mean: float | None = None) -> DetectorOutput:
         """Feed samples (finite, consecutive); return the chart's verdict on the new band values.
@@ -337,16 +359,7 @@ class Detector:
                 None to skip the transient allowance.
         """
         t_out, d = self.monitor.push(t_s, values)
-        allowance = 0.0
-        if expected_mean is not None and math.isfinite(expected_mean):
-            tm, dm = self._model.push(t_s, np.full(np.shape(values)[0], float(expected_mean)))
-            if dm.size:
-                self._recent.append((float(tm[-1]), float(np.max(np.abs(dm)))))
-            if self._recent:
-                horizon = float(t_s[-1]) - TRANSIENT_SLACK_S
-                while self._recent and self._recent[0][0] < horizon:
-                    self._recent.popleft()
-                allowance = TRANSIENT_GAIN * max((a for _, a in self._recent), default=0.0)
+        allowance = self._allowance(t_s, np.shape(values)[0], expected_mean)
         ucl = self.ucl + allowance
         if d.size == 0:
             return DetectorOutput(None, ucl, False, 0.0, None, allowance)

@@ -240,6 +240,7 @@ class Supervisor:
         self._last_alarm: float | None = None
         self._status = "learning" if sigma is None else "warmup"
         self._last_log = -math.inf
+        self._logged_target = math.nan
         self._last_band: float | None = None
         self._enter_section(start_s)
 
@@ -395,7 +396,7 @@ class Supervisor:
             status, target = "learning", min(cap, tr.ceiling)
             if self._learn_t0 is None:
                 self._learn_t0 = float(chunk.t_s[0])
-            _, d = self.detector.monitor.push(chunk.t_s, chunk.values)
+            d = self.detector.observe(chunk.t_s, chunk.values, expected)
             self._learn_sum += float(d @ d)
             self._learn_n += d.size
             reason = "learning sigma from the stable window"
@@ -509,7 +510,7 @@ class Supervisor:
 
     def _emit(self, now: float, res: StepResult, force: bool) -> None:
         if not force and now - self._last_log < self.cfg.heartbeat_s and abs(
-                res.target - getattr(self, "_logged_target", res.target)) <= TARGET_EPS_PCT:
+                res.target - self._logged_target) <= TARGET_EPS_PCT:
             return
         self._last_log = now
         self._logged_target = res.target
