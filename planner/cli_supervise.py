@@ -37,6 +37,7 @@ from planner.plan_file import load_plan
 from planner.simcut import CutScenario, SimulatedCut
 from planner.supervise_loop import VirtualClock, run_loop
 from planner.supervise_metrics import episode_metrics
+from planner.supervise_plot import RunTrace, plot_run
 from planner.supervisor import Supervisor, SupervisorConfig
 
 __all__ = ["register", "run", "simulated_sigma"]
@@ -79,6 +80,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--seed", type=int, default=0, help="noise seed")
     g.add_argument("--fast", action="store_true",
                    help="--signal sim with kvp://: run on a virtual clock (no sleeping)")
+    p.add_argument("--plot", metavar="FILE.png",
+                   help="plot the band against its limit, the override and (sim) the true chatter")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(run=run)
 
@@ -184,13 +187,19 @@ def run(args: argparse.Namespace) -> int:
         duration = args.duration_s
         if duration is None:
             duration = (6.0 if sim_signal else getattr(source, "duration_s", None) or math.inf)
+        trace = RunTrace()
         try:
             rep = run_loop(sup, source, link, duration, cycle_s, clock=clock, sleep=sleep,
-                           before_step=before_step)
+                           before_step=before_step, on_step=trace)
         except KeyboardInterrupt:
             rep = None
         log.flush()
         summary = _summary(sup, rep, source, link, cut, scenario, cycle_s, args)
+        if args.plot:
+            plot_run(trace, args.plot, cut.truth if cut is not None else None,
+                     title=f"cctmill supervise: {args.signal} -> {args.robot}, level "
+                           f"{sup.level.level} ({sup.level.band_hz[0]:.3g}-{sup.level.band_hz[1]:.3g} Hz)")
+            summary["plot"] = args.plot
     finally:
         for c in reversed(closers):
             try:
@@ -342,5 +351,7 @@ def _text(s: dict) -> str:
                     f"{e['override_min']:.1f} % (direction {e['direction']:+d}){extra}")
     if s.get("log"):
         rows.append(f"log           {s['log']}")
+    if s.get("plot"):
+        rows.append(f"plot          {s['plot']}")
     return "\n".join(rows)
 

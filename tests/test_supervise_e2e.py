@@ -143,7 +143,7 @@ def test_cli_supervise_sim_json(tmp_path, capsys):
     make_plan(tmp_path / "plan", CUT)
     rc = main(["supervise", "--plan", str(tmp_path / "plan"), "--signal", "sim", "--robot", "sim",
                "--duration-s", "2.2", "--chatter-onset-s", "0.8", "--json",
-               "--log", str(tmp_path / "ev.jsonl")])
+               "--log", str(tmp_path / "ev.jsonl"), "--plot", str(tmp_path / "run.png")])
     assert rc == 0
     out = json.loads(capsys.readouterr().out)
     assert out["level"] == 9 and out["L_c"] == pytest.approx(4.0, abs=0.02)
@@ -151,6 +151,7 @@ def test_cli_supervise_sim_json(tmp_path, capsys):
     assert out["episodes"][0]["detection_delay_ms"] is not None
     assert out["step_latency_ms"]["p99"] < 4.0
     assert (tmp_path / "ev.jsonl").read_text().count("\n") > 10
+    assert (tmp_path / "run.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_cli_supervise_udp_stream_to_kvp(tmp_path, capsys):
