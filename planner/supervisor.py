@@ -26,8 +26,10 @@ Policy (SPEC §9):
 - **Quiet** for ``quiet_s`` after the last alarm: recover towards min(100 %, ceiling).
 - **Signal.** Non-finite, out-of-range (|value| > ``plausible_max``), stuck (a constant chunk of
   ``stuck_samples`` or more) or time-reversed samples are dropped and counted; a gap restarts the
-  band filter (a warm-up, during which the override holds). No valid samples for ``hold_after_s``:
-  hold the override; for ``signal_timeout_s``: go to the safe override.
+  band filter (a warm-up, during which the override holds), and so does a source whose clock
+  restarted (stamps more than ``RESTART_BACK_S`` before the previous ones: a new stream). No
+  valid samples for ``hold_after_s``: hold the override; for ``signal_timeout_s``: go to the safe
+  override.
 
 Every decision is written to the :class:`~planner.event_log.EventLog`: status changes, every alarm
 step, every new target, and a heartbeat every ``heartbeat_s`` while nothing changes.
@@ -73,6 +75,9 @@ STATUSES = ("ok", "learning", "warmup", "alarm", "quiet", "recover", "hold", "sa
 TARGET_EPS_PCT = 1e-6
 #: Band values needed before σ is taken as learned.
 MIN_LEARN_VALUES = 100
+#: Samples stamped more than this before the previous ones mean the source restarted its clock
+#: (a new stream, accepted after a filter warm-up); less far back they are stale and dropped [s].
+RESTART_BACK_S = 0.5
 #: A time step longer than this is taken as a stall, not as motion [s].
 MAX_DT_S = 0.5
 
@@ -221,7 +226,7 @@ class Supervisor:
         self.safe_pct = cfg.safe_pct if cfg.safe_pct is not None else cfg.floor_pct
         self.episodes: list[Episode] = []
         self.counts = {"steps": 0, "implausible_chunks": 0, "implausible_samples": 0, "gaps": 0,
-                       "errors": 0, "alarms": 0, "no_direction": 0}
+                       "errors": 0, "alarms": 0, "no_direction": 0, "restarts": 0}
         self._learn_s = learn_s
         self._learn_sum = 0.0
         self._learn_n = 0
@@ -315,7 +320,7 @@ class Supervisor:
             return False, f"{v.size} identical samples (stuck sensor)"
         if v.size > 1 and not np.all(np.diff(t) > 0):
             return False, "time stamps not increasing"
-        if self._last_t is not None and t[0] <= self._last_t:
+        if self._last_t is not None and self._last_t - RESTART_BACK_S <= t[0] <= self._last_t:
             return False, "time stamps before the previous chunk's"
         return True, ""
 
@@ -369,7 +374,12 @@ class Supervisor:
             ok, why = self._valid(chunk)
             if ok:
                 valid = True
-                if self._last_t is not None and chunk.t_s[0] - self._last_t > 1.5 / self.fs_hz:
+                if self._last_t is not None and chunk.t_s[0] < self._last_t:
+                    # far back in time: the source restarted its clock; a new stream
+                    self.counts["restarts"] += 1
+                    self.detector.reset()
+                    reason = f"signal clock restarted ({self._last_t:.3f} s -> {chunk.t_s[0]:.3f} s)"
+                elif self._last_t is not None and chunk.t_s[0] - self._last_t > 1.5 / self.fs_hz:
                     self.counts["gaps"] += 1
                     self.detector.reset()
                 self._last_t = float(chunk.t_s[-1])

@@ -70,6 +70,7 @@ class SourceStats:
         out_of_order: packets dropped because they came after a later one.
         lost: packets never received (gaps in the sequence numbers).
         overflow: samples discarded because the consumer did not keep up.
+        resyncs: times the sender was taken to have restarted (its sequence jumped far back).
         last_error: text of the last problem, ``""`` if none.
     """
 
@@ -79,6 +80,7 @@ class SourceStats:
     out_of_order: int = 0
     lost: int = 0
     overflow: int = 0
+    resyncs: int = 0
     last_error: str = ""
 
     def as_dict(self) -> dict[str, int | str]:

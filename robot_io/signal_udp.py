@@ -14,8 +14,9 @@ Sample ``i`` has timestamp ``t0_s + i / fs_hz``. A datagram whose size differs f
 ``22 + 4 * count``, with a wrong magic, a count of 0 or over :data:`MAX_SAMPLES`, or a non-finite or
 non-positive ``fs_hz`` or ``t0_s`` is *malformed*: dropped and counted. Sequence numbers are compared
 modulo 2**32: a datagram older than the newest seen is *out of order* (dropped, counted); a jump
-forward counts the skipped numbers as *lost*. Sample values are passed on as received (a NaN is the
-consumer's to judge).
+forward counts the skipped numbers as *lost*; one more than :data:`REORDER_WINDOW` behind means the
+sender restarted: the stream resynchronises on it (counted in ``resyncs``). Sample values are passed
+on as received (a NaN is the consumer's to judge).
 
 The receiver binds 127.0.0.1 unless told otherwise, never blocks (a read drains at most
 :data:`MAX_DATAGRAMS_PER_READ` datagrams) and never raises.
@@ -37,6 +38,7 @@ __all__ = [
     "HEADER",
     "MAGIC",
     "MAX_SAMPLES",
+    "REORDER_WINDOW",
     "UdpSignalSender",
     "UdpSignalSource",
     "pack_samples",
@@ -49,6 +51,9 @@ HEADER = struct.Struct("<4sIdfH")
 MAX_SAMPLES = 4096
 #: Datagrams one ``read`` drains at most, so a flood cannot stall the supervisor's step.
 MAX_DATAGRAMS_PER_READ = 256
+#: A datagram at most this many sequence numbers behind the newest is late (dropped); further
+#: behind, the sender is taken to have restarted and the stream resynchronises on it.
+REORDER_WINDOW = 64
 #: Samples held for a consumer that reads less than arrives; older ones are dropped and counted.
 BACKLOG_SAMPLES = 65536
 _SEQ_MOD = 1 << 32
@@ -109,10 +114,15 @@ class UdpSignalSource:
         seq, t0, fs, values = parsed
         if self._next_seq is not None:
             ahead = (seq - self._next_seq) % _SEQ_MOD
-            if ahead >= _SEQ_MOD // 2:
+            behind = (self._next_seq - seq) % _SEQ_MOD
+            if ahead >= _SEQ_MOD // 2 and behind <= REORDER_WINDOW:
                 self.stats.out_of_order += 1
                 return
-            self.stats.lost += ahead
+            if ahead >= _SEQ_MOD // 2:  # far behind: the sender restarted its sequence
+                self.stats.resyncs += 1
+                self.stats.last_error = f"sender restarted (seq {seq} after {self._next_seq - 1})"
+            else:
+                self.stats.lost += ahead
         self._next_seq = (seq + 1) % _SEQ_MOD
         self.stats.packets += 1
         self.fs_hz = float(fs)

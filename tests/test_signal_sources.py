@@ -151,6 +151,24 @@ def test_udp_stream_carries_timestamps_and_counts_problems():
         assert src.fs_hz == 1000.0
 
 
+def test_udp_sender_restart_resynchronises():
+    with UdpSignalSource() as src:
+        tx = UdpSignalSender(*src.address)
+        for i in range(100):
+            tx.send(i * 0.001, 1000.0, np.ones(1))
+        _drain(src, 100)
+        tx.send_raw(pack_samples(60, 9.0, 1000.0, np.ones(1)))   # 39 behind: late, dropped
+        tx.seq = 0                                                 # the DAQ restarted
+        for i in range(5):
+            tx.send(i * 0.001, 1000.0, np.full(1, 2.0))
+        tx.close()
+        t, v = _drain(src, 5)
+        np.testing.assert_allclose(v, 2.0)
+        np.testing.assert_allclose(t, np.arange(5) * 0.001)
+        s = src.stats
+        assert (s.out_of_order, s.resyncs, s.lost) == (1, 1, 0)
+
+
 def test_udp_large_block_is_split_and_reassembled():
     with UdpSignalSource() as src:
         tx = UdpSignalSender(*src.address)

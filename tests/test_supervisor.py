@@ -140,6 +140,18 @@ def test_signal_lost_holds_then_goes_to_the_safe_override(tmp_path, rng, sigma):
     assert 30.0 < f.results[-1].override < 30.0 + 0.85 * cfg.recover_pct_s
 
 
+def test_a_source_clock_restart_is_a_new_stream_not_a_dead_one(tmp_path, rng, sigma):
+    sup = Supervisor(_plan(tmp_path, ONE_SECTION), FS, sigma=sigma)
+    f = Feeder(sup, rng)
+    f.run(1.0)
+    f.k = 0  # the DAQ restarts: time stamps from 0 again
+    f.run(0.1)
+    assert sup.counts["restarts"] == 1 and f.results[-1].status == "warmup"
+    assert any("clock restarted" in r.reason for r in f.results[-25:])
+    f.run(0.5)
+    assert f.results[-1].status == "ok" and sup.counts["implausible_chunks"] == 0
+
+
 GARBAGE = [
     SignalChunk(np.zeros(0), np.zeros(0)),
     SignalChunk(np.arange(40) / FS, np.full(40, np.nan)),
