@@ -160,11 +160,9 @@ def _loop(sup, source, link, duration_s, cycle_s, clock, sleep, before_step, on_
                 sent_ok, why = False, f"link raised {type(e).__name__}: {e}"
             rep.link_writes += 1
             last_send_t = now
-            if sent_ok:
-                last_sent = cmd
-            else:
+            last_sent = cmd  # refused or not, the link keeps the value and sends it when it is up
+            if not sent_ok:
                 rep.link_failures += 1
-                last_sent = None
             up = up and sent_ok
         if up != link_ok:
             if not up:
