@@ -107,14 +107,18 @@ def test_no_stabilising_direction_backs_off_towards_the_floor(tmp_path, rng, sig
     assert min(r.override for r in f.results) >= sup.cfg.floor_pct - 1e-9
 
 
-def test_force_limit_caps_the_override(tmp_path, rng, sigma):
-    # force 20 + 15 f [N]: 140 N at the planned 8 mm/s; a 100 N limit allows 5.33 mm/s = 66.7 %
-    sup = Supervisor(_plan(tmp_path, ONE_SECTION, force_max_N=100.0), FS, sigma=sigma)
+@pytest.mark.parametrize("force_max_N,cap", [
+    (100.0, 100.0 * (100.0 - 20.0) / 15.0 / 8.0),  # force 20 + 15 f [N]: 5.33 mm/s = 66.7 %
+    (30.0, 100.0 * 1.0 / 8.0),                     # even the grid's lowest feed is over: 12.5 %,
+])                                                 # under the floor: the force limit wins
+def test_force_limit_caps_the_override(tmp_path, rng, sigma, force_max_N, cap):
+    sup = Supervisor(_plan(tmp_path, ONE_SECTION, force_max_N=force_max_N), FS, sigma=sigma)
     f = Feeder(sup, rng)
     f.run(1.0)
-    cap = 100.0 * (100.0 - 20.0) / 15.0 / 8.0
     assert max(r.override for r in f.results) <= cap + 1e-9
     assert f.results[-1].override == pytest.approx(cap, abs=1e-6)
+    f.run(0.5, chatter_N=8.0)
+    assert max(r.override for r in f.results) <= cap + 1e-9
 
 
 def test_signal_lost_holds_then_goes_to_the_safe_override(tmp_path, rng, sigma):
