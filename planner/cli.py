@@ -228,6 +228,13 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         print(f"  {w}")
     for note in demo.notes:
         print(f"note: {note}")
+    h = demo.headline
+    print(f"\nheadline: cycle time {h['cycle_time_s']:.1f} s vs {h['thesis_cycle_time_s']:.1f} s "
+          f"for the thesis baseline ({100 * h['cycle_time_gain_vs_thesis']:.1f} % shorter); worst "
+          f"predicted deflection {h['deflection_max_mm']:.3f} mm (normal to the wall "
+          f"{h['deflection_normal_max_mm']:.3f} mm); chatter episodes caught "
+          f"{h['chatter_episodes_caught']}")
+    print(f"open {out / 'report.html'} (the plan) and {out / 'supervise.png'} (the supervised run)")
     return 0
 
 

@@ -40,7 +40,7 @@ from planner.supervise_metrics import episode_metrics
 from planner.supervise_plot import RunTrace, plot_run
 from planner.supervisor import Supervisor, SupervisorConfig
 
-__all__ = ["register", "run", "simulated_sigma"]
+__all__ = ["register", "run", "simulated_sigma", "supervise"]
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -76,6 +76,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="when the cut becomes less stable than planned [s] (default 2; negative: never)")
     g.add_argument("--boundary-shift", type=float, default=1.6,
                    help="after the onset the true margin at feed f is the plan's at f x this (default 1.6)")
+    g.add_argument("--margin-offset-n-per-m", type=float, default=0.0,
+                   help="after the onset the true margin is also this much lower [N/m] (default 0)")
     g.add_argument("--signal-loss-s", metavar="A:B", help="no samples between A and B [s]")
     g.add_argument("--seed", type=int, default=0, help="noise seed")
     g.add_argument("--fast", action="store_true",
@@ -106,7 +108,8 @@ def _scenario(args: argparse.Namespace) -> CutScenario:
     if not args.boundary_shift > 0:
         raise InputError("--boundary-shift", "must be positive")
     onset = args.chatter_onset_s if args.chatter_onset_s is not None and args.chatter_onset_s >= 0 else None
-    return CutScenario(onset_s=onset, boundary_shift=args.boundary_shift, loss_s=loss, seed=args.seed)
+    return CutScenario(onset_s=onset, boundary_shift=args.boundary_shift, loss_s=loss, seed=args.seed,
+                       margin_offset_N_per_m=args.margin_offset_n_per_m)
 
 
 def simulated_sigma(plan, fs_hz: float, scenario: CutScenario, config: SupervisorConfig,
@@ -130,6 +133,17 @@ def simulated_sigma(plan, fs_hz: float, scenario: CutScenario, config: Superviso
 
 
 def run(args: argparse.Namespace) -> int:
+    """``cctmill supervise``: :func:`supervise`, then print its summary (text or JSON)."""
+    summary = supervise(args)
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print(_text(summary))
+    return 0
+
+
+def supervise(args: argparse.Namespace) -> dict[str, Any]:
+    """Run the supervisor as the parsed ``cctmill supervise`` flags say; return the summary."""
     if not args.cycle_ms > 0:
         raise InputError("--cycle-ms", "must be positive")
     if args.duration_s is not None and not args.duration_s > 0:
@@ -206,11 +220,7 @@ def run(args: argparse.Namespace) -> int:
                 c.close()
             except Exception:  # noqa: BLE001 - closing must not hide the result
                 pass
-    if args.json:
-        print(json.dumps(summary, indent=2))
-    else:
-        print(_text(summary))
-    return 0
+    return summary
 
 
 def _make_link(args: argparse.Namespace, cycle_s: float, closers: list):

@@ -3,7 +3,8 @@
 :func:`run_demo_job` places the demo job (``planner/data/demo/demo_job.toml``: the outside contour
 of an Al 6061 bracket on the KR 210) in its cell, plans it with the optimiser and the thesis
 baseline, writes the plan, its report (and, where Chromium is installed, a screenshot of it) and
-the KRL program, and returns the written files and the headline numbers.
+the KRL program, runs the online supervisor on a simulated cut against a simulated controller
+over loopback (:func:`supervise_demo`), and returns the written files and the headline numbers.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from typing import Any
 
 from planner._atomic import write_text_atomic
 
-__all__ = ["DemoResult", "demo_job_file", "run_demo_job"]
+__all__ = ["DemoResult", "demo_job_file", "run_demo_job", "supervise_demo"]
 
 
 def demo_job_file() -> Path:
@@ -77,6 +78,9 @@ def run_demo_job(out: Path) -> DemoResult:
     except ReportRenderError as err:
         res_out.notes.append(f"report screenshot skipped: {err}")
     res_out.written += export_plan(plan_files["plan"], out / "krl", controller="krc4")
+    sup = supervise_demo(plan_files["plan"], out)
+    res_out.written += [out / SUPERVISE_LOG, out / SUPERVISE_PLOT]
+    episodes = sup["summary"]["episodes"]
     ev = res.evaluation
     thesis_time = plans["thesis"].cycle_time
     res_out.headline = {
@@ -85,10 +89,80 @@ def run_demo_job(out: Path) -> DemoResult:
         "deflection_max_mm": float(ev.deflection_norm.max() * 1e3),
         "deflection_normal_max_mm": float(abs(ev.deflection_normal).max() * 1e3),
         "force_max_N": float(ev.force.max()), "sections": len(res.section_rows),
+        "chatter_episodes_caught": len(episodes),
+        "chatter_detection_delay_ms": [e.get("detection_delay_ms") for e in episodes],
+        "chatter_settling_ms": [e.get("settling_ms") for e in episodes],
     }
     res_out.lines.append(
         f"== Plan of the demo job (optimize): cycle {res.cycle_time:.1f} s vs thesis baseline "
         f"{thesis_time:.1f} s ({100 * (1 - res.cycle_time / thesis_time):.1f} % shorter); "
         f"{len(res.section_rows)} sections; worst force {ev.force.max():.0f} N, worst deflection "
         f"{ev.deflection_norm.max() * 1e3:.3f} mm")
+    res_out.lines.append(
+        f"== Supervised run (simulated KukaVarProxy controller over loopback, simulated cut from "
+        f"section {sup['section']} at s = {sup['start_mm']:.0f} mm): {sup['scenario']}; "
+        f"{len(episodes)} chatter episode(s) caught"
+        + "".join(f"; section {e['section']}: override {e['override_start']:.0f} -> "
+                  f"{e['override_min']:.0f} %, detected {e.get('detection_delay_ms')} ms after the "
+                  f"chatter became visible, gone {e.get('settling_ms')} ms after the alarm"
+                  for e in episodes))
     return res_out
+
+
+#: Files of the supervised run, in the demo's output folder.
+SUPERVISE_LOG = "supervise_events.jsonl"
+SUPERVISE_PLOT = "supervise.png"
+#: The demo's model error: from this time on [s] the simulated arm is less stable than the plan
+#: says, so that its planned feed chatters and this fraction of it does not.
+DEMO_ONSET_S = 1.5
+DEMO_STABLE_FRACTION = 0.7
+DEMO_DURATION_S = 5.0
+
+
+def _demo_section(sections: list[dict[str, Any]]) -> tuple[dict[str, Any], float]:
+    """The first cut section (at least 5 mm/s, margin falling with feed there) and the margin
+    offset that puts its stability boundary at :data:`DEMO_STABLE_FRACTION` of its feed."""
+    import numpy as np
+
+    for sec in sections:
+        ch = sec.get("characteristic")
+        if sec["kind"] != "cut" or not ch or sec["feed_mm_s"] < 5.0:
+            continue
+        f = np.asarray(ch["feeds_mm_s"])
+        m = np.asarray(ch["margin_N_per_m"])
+        at = float(np.interp(sec["feed_mm_s"], f, m))
+        below = float(np.interp(DEMO_STABLE_FRACTION * sec["feed_mm_s"], f, m))
+        if below > at:
+            return sec, below
+    raise RuntimeError("the demo plan has no cut section to simulate chatter on")
+
+
+def supervise_demo(plan_path: Path, out: Path) -> dict[str, Any]:
+    """Run ``cctmill supervise`` on the demo plan against a simulated controller and cut.
+
+    The simulated cut is told (model error) that from :data:`DEMO_ONSET_S` on the arm is less
+    stable than the plan by the margin the plan gives at 70 % of the section's feed: the planned
+    feed then chatters — as the Floquet criterion says this 10 mm deep cut at 4000 rpm does while
+    the averaged thesis model calls it stable — and the supervisor has to find a feed that does
+    not. Writes the event log and the band/limit/override plot.
+    """
+    from planner.cli import build_parser
+    from planner.cli_supervise import supervise
+    from planner.plan_file import load_plan
+
+    plan = load_plan(plan_path)
+    sec, offset = _demo_section(plan.sections)
+    start_mm = sec["s_start_m"] * 1e3
+    args = build_parser().parse_args([
+        "supervise", "--plan", str(plan_path), "--signal", "sim", "--robot", "sim",
+        "--log", str(out / SUPERVISE_LOG), "--plot", str(out / SUPERVISE_PLOT),
+        f"--start-mm={start_mm:.3f}", f"--chatter-onset-s={DEMO_ONSET_S}", "--boundary-shift=1",
+        f"--margin-offset-n-per-m={offset:.1f}", f"--duration-s={DEMO_DURATION_S}"])
+    log = out / SUPERVISE_LOG
+    if log.exists():
+        log.unlink()  # the event log appends: a fresh demo starts a fresh log
+    summary = supervise(args)
+    return {"summary": summary, "section": sec["index"], "start_mm": start_mm,
+            "scenario": f"from t = {DEMO_ONSET_S:g} s the arm is {offset:.3g} N/m less stable "
+                        f"than the model (its stability boundary at {DEMO_STABLE_FRACTION:.0%} of "
+                        "the planned feed)"}

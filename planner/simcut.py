@@ -16,7 +16,10 @@ arm: ``models.dynamics`` was not available when this was written), so it is a *b
   ``chatter_max_N`` (the limit cycle of real chatter);
 - model error: from ``onset_s`` on, the true margin at feed f is the plan's margin at
   f × ``boundary_shift`` (the cut has become less stable than planned: tool wear, a softer
-  fixture), so the planned feed chatters and a lower one does not — the supervisor's job;
+  fixture), so the planned feed chatters and a lower one does not — the supervisor's job; and
+  ``margin_offset_N_per_m`` is subtracted from it (an arm less stable than its model by that much
+  at every feed: what the averaged eigen model misses where the Floquet criterion finds the cut
+  unstable);
 - signal loss: no samples between ``loss_s[0]`` and ``loss_s[1]`` (a broken DAQ cable).
 
 Everything is seeded; time is the simulation's own (s since the first read, on ``clock``).
@@ -52,6 +55,7 @@ class CutScenario:
 
     onset_s: float | None = None
     boundary_shift: float = 1.6
+    margin_offset_N_per_m: float = 0.0
     noise_N: float = 0.3
     forced_ratio: float = 0.005
     tooth_ratio: tuple[float, float] = (0.5, 0.2)
@@ -176,8 +180,9 @@ class SimulatedCut:
             margin = math.inf
         else:
             mean_F = np.interp(feed, ch.feeds_mm_s, ch.force_N)
-            shift = sc.boundary_shift if sc.onset_s is not None and t[0] >= sc.onset_s else 1.0
-            margin = margin_at(ch, self._feed * shift)
+            after = sc.onset_s is not None and t[0] >= sc.onset_s
+            shift = sc.boundary_shift if after else 1.0
+            margin = margin_at(ch, self._feed * shift) - (sc.margin_offset_N_per_m if after else 0.0)
         # chatter amplitude over this block
         if math.isfinite(margin):
             scale = 0.05 * (ch.margin_scale if ch is not None else 1.0)

@@ -127,6 +127,20 @@ def test_demo_writes_outputs(tmp_path, capsys):
     assert not any(name.startswith(".") for name in files)  # no temporary files left behind
     data = json.loads((tmp_path / "case1_thesis_robot_analysis.json").read_text())
     assert np.linalg.norm(data["force_N"]) == pytest.approx(71.5, rel=2e-3)
+    # the whole product: plan, report, KRL, supervised run with its log and plot
+    for name in ("plan.json", "samples.npz", "report.html", "plan_along_path.png",
+                 "supervise_events.jsonl", "supervise.png"):
+        assert (tmp_path / name).stat().st_size > 1000, name
+    assert (tmp_path / "krl" / "bracket_contour.src").is_file()
+    events = [json.loads(line) for line in
+              (tmp_path / "supervise_events.jsonl").read_text().splitlines()]
+    assert events and all({"t_s", "section", "override", "reason"} <= set(e) for e in events[:50])
+    out = capsys.readouterr().out
+    headline = [line for line in out.splitlines() if line.startswith("headline:")]
+    assert len(headline) == 1
+    assert "thesis baseline" in headline[0] and "deflection" in headline[0]
+    caught = int(headline[0].rsplit("chatter episodes caught", 1)[1])
+    assert caught >= 1
 
 
 @pytest.mark.skipif(shutil.which("cctmill") is None and not (
