@@ -12,6 +12,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from _threads import no_leaked_threads, wait_for  # noqa: F401  (autouse fixture)
 
 from robot_io.kvp import (
     FN_READ,
@@ -31,25 +32,6 @@ from robot_io.robot_link import LinkError, ProtocolError, RobotLink
 
 py_openshowvar = pytest.importorskip("py_openshowvar")
 
-#: How long a test waits for a background thread to reach a state [s] (generous: 2 shared cores).
-WAIT_S = 3.0
-
-
-def wait_for(cond, timeout: float = WAIT_S) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if cond():
-            return True
-        time.sleep(0.005)
-    return cond()
-
-
-@pytest.fixture(autouse=True)
-def no_leaked_threads():
-    before = set(threading.enumerate())
-    yield
-    assert wait_for(lambda: not (set(threading.enumerate()) - before), 2.0), \
-        f"threads left running: {set(threading.enumerate()) - before}"
 
 
 def _reply_tuple(data: bytes) -> tuple:

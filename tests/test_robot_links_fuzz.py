@@ -16,6 +16,8 @@ try:  # tests/ as rootdir-on-path folder or as a package
     from conftest import mutate
 except ImportError:  # pragma: no cover - depends on how pytest imports tests/
     from tests.conftest import mutate
+from _threads import no_leaked_threads, wait_for  # noqa: F401  (autouse fixture)
+
 from robot_io.kvp import (
     FN_READ,
     FN_WRITE,
@@ -58,22 +60,6 @@ DEEP = b"<Rob>" + b"<a>" * 500 + b"</a>" * 500 + b"<IPOC>1</IPOC></Rob>"
 HOSTILE = [BILLION_LAUGHS, EXTERNAL_ENTITY, EXTERNAL_DTD, PARAMETER_ENTITY, UNDECLARED_ENTITY, OVERSIZED,
            b"\xff\xfe<\x00R\x00o\x00b\x00>\x00", b"<Rob" * 900, b"\x00" * 200]
 
-
-def wait_for(cond, timeout: float = WAIT_S) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if cond():
-            return True
-        time.sleep(0.002)
-    return cond()
-
-
-@pytest.fixture(autouse=True)
-def no_leaked_threads():
-    before = set(threading.enumerate())
-    yield
-    assert wait_for(lambda: not (set(threading.enumerate()) - before), 2.0), \
-        f"threads left running: {set(threading.enumerate()) - before}"
 
 
 def _random_bytes(rng: np.random.Generator, max_len: int) -> bytes:

@@ -9,6 +9,7 @@ import threading
 import time
 
 import pytest
+from _threads import no_leaked_threads, wait_for  # noqa: F401  (autouse fixture)
 
 from robot_io.robot_link import LinkError, ProtocolError, RobotLink
 from robot_io.rsi import (
@@ -42,22 +43,6 @@ DAT_ROB = b"""<Rob TYPE="KUKA"><Dat TaskType="b"><ComStatus>continuous</ComStatu
 <AIPos A1="74.8478" A2="-128.7977" A3="75.8236" A4="102.2260" A5="0.0987" A6="-56.5347"/>
 <IPOC>680309708</IPOC><Tech x="1" p6="0.0000"/><RGH X="0" T="00000"/><RWMode>C</RWMode></Dat></Rob>"""
 
-
-def wait_for(cond, timeout: float = WAIT_S) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if cond():
-            return True
-        time.sleep(0.005)
-    return cond()
-
-
-@pytest.fixture(autouse=True)
-def no_leaked_threads():
-    before = set(threading.enumerate())
-    yield
-    assert wait_for(lambda: not (set(threading.enumerate()) - before), 2.0), \
-        f"threads left running: {set(threading.enumerate()) - before}"
 
 
 # -- telegrams ----------------------------------------------------------------------------------------
