@@ -37,6 +37,7 @@ __all__ = [
     "PROCESS_MODELS",
     "Cut",
     "ModelParameters",
+    "path_inputs",
     "point_function",
 ]
 
@@ -312,3 +313,24 @@ def point_function(robot: Robot, process_model: str = "thesis", mass_model: str 
     if unknown:
         raise InputError("outputs", f"unknown {unknown}; choose from {OUTPUTS}")
     return _cached_point_function(robot, process_model, mass_model, outs)
+
+
+def path_inputs(q, cuts, feeds) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """Check and shape the per-sample inputs of a path evaluation.
+
+    Args:
+        q: joints [rad], shape (n, nq) (or (nq,) for one sample).
+        cuts: :meth:`Cut.vector` rows, shape (n, 12).
+        feeds: feed speed [m/s], shape (n,).
+
+    Returns:
+        ``(q, cuts, feeds, n)`` as float arrays.
+    """
+    q = np.atleast_2d(np.asarray(q, float))
+    cuts = np.atleast_2d(np.asarray(cuts, float))
+    feeds = np.asarray(feeds, float).reshape(-1)
+    n = q.shape[0]
+    if cuts.shape != (n, N_CUT) or feeds.shape != (n,):
+        raise InputError("path", f"need q (n, nq), cuts (n, {N_CUT}), feeds (n,); got {q.shape}, "
+                         f"{cuts.shape}, {feeds.shape}")
+    return q, cuts, feeds, n

@@ -34,7 +34,7 @@ import numpy as np
 import scipy.optimize
 
 from models import cutting
-from models.analysis import ModelParameters, point_function
+from models.analysis import ModelParameters, path_inputs, point_function
 from models.errors import CctmillError, InputError
 from models.robot import Robot
 
@@ -89,13 +89,7 @@ def path_deflection(robot: Robot, params: ModelParameters, q: np.ndarray, cuts: 
         cuts: ``Cut.vector()`` rows, shape (n, 12).
         feeds: feed speed [m/s], shape (n,).
     """
-    q = np.atleast_2d(np.asarray(q, float))
-    cuts = np.atleast_2d(np.asarray(cuts, float))
-    feeds = np.asarray(feeds, float).reshape(-1)
-    n = q.shape[0]
-    if cuts.shape != (n, 12) or feeds.shape != (n,):
-        raise InputError("path", f"need q (n, nq), cuts (n, 12), feeds (n,); got {q.shape}, "
-                         f"{cuts.shape}, {feeds.shape}")
+    q, cuts, feeds, n = path_inputs(q, cuts, feeds)
     f = point_function(robot, "oriented", "isotropic", outputs=("deflection", "force_base"))
     fm = f.map(n)
     res = fm(q.T, cuts.T, feeds.reshape(1, -1), params.vector())

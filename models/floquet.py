@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from models import cutting
-from models.analysis import Cut, ModelParameters, point_function
+from models.analysis import Cut, ModelParameters, path_inputs, point_function
 from models.dynamics import (
     DEFAULT_DAMPING_RATIO,
     DEFAULT_SLICES,
@@ -219,13 +219,7 @@ def path_floquet(robot: Robot, params: ModelParameters, q: np.ndarray, cuts: np.
         feeds: [m/s], shape (n,).
         helix_angle: [rad]; damping_ratio: ζ of both modes.
     """
-    q = np.atleast_2d(np.asarray(q, float))
-    cuts = np.atleast_2d(np.asarray(cuts, float))
-    feeds = np.asarray(feeds, float).reshape(-1)
-    n = q.shape[0]
-    if cuts.shape != (n, 12) or feeds.shape != (n,):
-        raise InputError("path", f"need q (n, nq), cuts (n, 12), feeds (n,); got {q.shape}, "
-                         f"{cuts.shape}, {feeds.shape}")
+    q, cuts, feeds, n = path_inputs(q, cuts, feeds)
     k_fun = point_function(robot, "oriented", "isotropic", outputs=("stiffness",)).map(n)
     k_t = np.asarray(k_fun(q.T, cuts.T, feeds.reshape(1, -1), params.vector()), float)
     m_fun = _tcp_mass_function(robot).map(n)
