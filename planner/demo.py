@@ -164,5 +164,6 @@ def supervise_demo(plan_path: Path, out: Path) -> dict[str, Any]:
     summary = supervise(args)
     return {"summary": summary, "section": sec["index"], "start_mm": start_mm,
             "scenario": f"from t = {DEMO_ONSET_S:g} s the arm is {offset:.3g} N/m less stable "
-                        f"than the model (its stability boundary at {DEMO_STABLE_FRACTION:.0%} of "
-                        "the planned feed)"}
+                        f"than the model (which puts the boundary at {DEMO_STABLE_FRACTION:.0%} of "
+                        f"the planned feed in section {sec['index']}, and lower in the sections "
+                        "after it, whose margins are smaller)"}
