@@ -10,8 +10,10 @@ import math
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import replace
+from typing import Any
 
-__all__ = ["SimulatedPathSpeed"]
+__all__ = ["SimulatedPathSpeed", "SimulatedPeer"]
 
 
 class SimulatedPathSpeed:
@@ -70,3 +72,35 @@ class SimulatedPathSpeed:
         """Path length travelled since start [m]."""
         with self._lock:
             return self._state(self._clock())[1]
+
+
+class SimulatedPeer:
+    """What the simulated KVP server and RSI controller share: a counter record and a path speed.
+
+    A subclass sets ``self._lock`` (a lock), ``self._stats`` (a frozen dataclass of counters) and
+    ``self.path`` (a :class:`SimulatedPathSpeed`) in its ``__init__``.
+    """
+
+    _lock: Any
+    _stats: Any
+    path: SimulatedPathSpeed
+
+    @property
+    def stats(self) -> Any:
+        """A snapshot of the counters."""
+        with self._lock:
+            return self._stats
+
+    @property
+    def override_percent(self) -> float:
+        """``$OV_PRO`` the simulated controller applies [percent]."""
+        return self.path.override_percent
+
+    def path_speed(self) -> float:
+        """Simulated path speed now [m/s]."""
+        return self.path.speed()
+
+    def _count(self, **inc: int) -> None:
+        with self._lock:
+            s = self._stats
+            self._stats = replace(s, **{k: getattr(s, k) + v for k, v in inc.items()})

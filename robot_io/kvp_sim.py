@@ -19,9 +19,9 @@ import logging
 import socket
 import threading
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
-from robot_io._sim_speed import SimulatedPathSpeed
+from robot_io._sim_speed import SimulatedPathSpeed, SimulatedPeer
 from robot_io.kvp import (
     FN_READ,
     FN_WRITE,
@@ -75,7 +75,7 @@ class KvpServerStats:
     ov_pro_writes: int = 0
 
 
-class KvpSimServer:
+class KvpSimServer(SimulatedPeer):
     """Threaded simulated KukaVarProxy server (a context manager: ``with KvpSimServer() as srv:``).
 
     Args:
@@ -167,28 +167,9 @@ class KvpSimServer:
         return self.host, self.port
 
     @property
-    def stats(self) -> KvpServerStats:
-        with self._lock:
-            return self._stats
-
-    @property
-    def override_percent(self) -> float:
-        """Current simulated ``$OV_PRO`` [percent]."""
-        return self.path.override_percent
-
-    def path_speed(self) -> float:
-        """Simulated path speed now [m/s]."""
-        return self.path.speed()
-
-    @property
     def client_count(self) -> int:
         with self._lock:
             return len(self._clients)
-
-    def _count(self, **inc: int) -> None:
-        with self._lock:
-            s = self._stats
-            self._stats = replace(s, **{k: getattr(s, k) + v for k, v in inc.items()})
 
     # -- serving -----------------------------------------------------------------------------------
     def _accept_loop(self) -> None:

@@ -25,7 +25,7 @@ import threading
 import time
 from dataclasses import dataclass, replace
 
-from robot_io._sim_speed import SimulatedPathSpeed
+from robot_io._sim_speed import SimulatedPathSpeed, SimulatedPeer
 from robot_io.robot_link import LinkError, ProtocolError
 from robot_io.rsi import MAX_PACKET_BYTES, build_rob, parse_sen
 
@@ -62,7 +62,7 @@ class RsiSimStats:
     overruns: int = 0
 
 
-class RsiSimController:
+class RsiSimController(SimulatedPeer):
     """A simulated KUKA controller speaking RSI to a PC server (a context manager).
 
     Args:
@@ -156,20 +156,6 @@ class RsiSimController:
         """``"idle"``, ``"running"``, ``"done"`` (max_cycles reached), ``"stopped"`` or ``"RSIBad"``."""
         return self._status
 
-    @property
-    def stats(self) -> RsiSimStats:
-        with self._lock:
-            return self._stats
-
-    @property
-    def override_percent(self) -> float:
-        """``$OV_PRO`` the simulated controller applies [percent]."""
-        return self.path.override_percent
-
-    def path_speed(self) -> float:
-        """Simulated path speed now [m/s]."""
-        return self.path.speed()
-
     def round_trips(self) -> list[float]:
         """Send-to-valid-reply times of the kept cycles answered in time [s], oldest first."""
         with self._lock:
@@ -183,11 +169,6 @@ class RsiSimController:
     @property
     def local_address(self) -> tuple[str, int]:
         return self._sock.getsockname()[:2]
-
-    def _count(self, **inc: int) -> None:
-        with self._lock:
-            s = self._stats
-            self._stats = replace(s, **{k: getattr(s, k) + v for k, v in inc.items()})
 
     # -- cycle -------------------------------------------------------------------------------------
     def _telegram(self, ipoc: int) -> bytes:
