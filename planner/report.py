@@ -20,6 +20,7 @@ import numpy as np
 
 from models.errors import CctmillError
 from planner._atomic import atomic_path, write_text_atomic
+from planner.plots import _figure, _save
 
 __all__ = [
     "BINDING_COLOURS",
@@ -44,23 +45,6 @@ class ReportRenderError(CctmillError):
     """The report could not be rendered to a screenshot (no browser, or it failed)."""
 
 
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig, path: str | os.PathLike) -> Path:
-    plt = _plt()
-    with atomic_path(path, suffix=".png") as tmp:
-        fig.savefig(tmp, format="png")
-    plt.close(fig)
-    return Path(path)
-
-
 def _bands(ax, rows: list[dict[str, Any]]) -> None:
     for r in rows:
         ax.axvspan(r["s_start_m"], r["s_end_m"], color=BINDING_COLOURS[r["binding"]], alpha=0.13,
@@ -69,13 +53,13 @@ def _bands(ax, rows: list[dict[str, Any]]) -> None:
 
 def plot_along_path(res, path: str | os.PathLike) -> Path:
     """Feed, force, deflection, γ, margin and joint speeds along the path. Writes a PNG."""
-    plt = _plt()
     prep, lim = res.prep, res.limits
     s = prep.path.s
     idx = res.model.index
     ev = res.evaluation
     rows = res.section_rows
-    fig, axes = plt.subplots(6, 1, figsize=(11.0, 13.0), dpi=100, sharex=True)
+    plt, fig = _figure(figsize=(11.0, 13.0), dpi=100)
+    axes = fig.subplots(6, 1, sharex=True)
     ax = axes[0]
     _bands(ax, rows)
     ceiling = np.full(s.size, np.nan)
@@ -140,10 +124,8 @@ def plot_along_path(res, path: str | os.PathLike) -> Path:
     ax.set_yscale("log")
     ax.set_ylim(1e-3, 150)
     ax.legend(fontsize=7, ncol=6, loc="lower right")
-    fig.suptitle(f"{prep.job.job.name}: {res.method} plan, cycle {res.cycle_time:.1f} s "
-                 f"(colour bands: what binds each section)", fontsize=10)
-    fig.tight_layout()
-    return _save(fig, path)
+    return _save(plt, fig, f"{prep.job.job.name}: {res.method} plan, cycle {res.cycle_time:.1f} s "
+                 "(colour bands: what binds each section)", path)
 
 
 def tightest_sections(rows: list[dict[str, Any]], k: int = 3) -> list[dict[str, Any]]:
@@ -154,12 +136,11 @@ def tightest_sections(rows: list[dict[str, Any]], k: int = 3) -> list[dict[str, 
 
 def plot_characteristics(res, path: str | os.PathLike) -> Path:
     """Stability characteristics of the three tightest sections. Writes a PNG."""
-    plt = _plt()
     rows = tightest_sections(res.section_rows)
     lim = res.limits
     ncol = max(1, len(rows))
-    fig, axes = plt.subplots(4, ncol, figsize=(4.0 * ncol, 10.0), dpi=100, squeeze=False,
-                             sharex="col")
+    plt, fig = _figure(figsize=(4.0 * ncol, 10.0), dpi=100)
+    axes = fig.subplots(4, ncol, squeeze=False, sharex="col")
     for j, r in enumerate(rows):
         ch = r["characteristic"]
         f = np.asarray(ch["feeds_mm_s"])
@@ -184,10 +165,8 @@ def plot_characteristics(res, path: str | os.PathLike) -> Path:
         axes[0, j].set_title(f"section {r['index']} (line {r['line_start']}), binds "
                              f"{r['binding']}", fontsize=9)
         axes[-1, j].set_xlabel("feed [mm/s]")
-    fig.suptitle("Stability characteristic of the three tightest sections (blue: planned feed; "
-                 "red shade: a limit broken)", fontsize=10)
-    fig.tight_layout()
-    return _save(fig, path)
+    return _save(plt, fig, "Stability characteristic of the three tightest sections (blue: planned "
+                 "feed; red shade: a limit broken)", path)
 
 
 def _img(path: Path) -> str:
