@@ -309,6 +309,7 @@ def _section_rows(res: PlanResult, ceiling: np.ndarray, pos: np.ndarray) -> list
     rows = []
     lim = res.limits
     grid = np.geomspace(lim.feed_min, lim.feed_max, CHARACTERISTIC_FEEDS)
+    pending: list[tuple[dict[str, Any], int]] = []
     for i, sec in enumerate(res.sections):
         a, b = sec.start, sec.stop
         length = float(ds[a:b].sum())
@@ -347,14 +348,21 @@ def _section_rows(res: PlanResult, ceiling: np.ndarray, pos: np.ndarray) -> list
                 "ceiling_min_mm_s": float(ceiling[model.index[tight]] * 1e3),
                 "tightest_sample": int(model.index[tight]),
             })
-            ch = model.evaluate(grid, np.full(grid.size, tight))
+            pending.append((row, tight))
+        rows.append(row)
+    # every cut section's characteristic at its tightest sample, in one mapped evaluation
+    if pending:
+        g = grid.size
+        ch = model.evaluate(np.tile(grid, len(pending)), np.repeat([t for _, t in pending], g))
+        for j, (row, tight) in enumerate(pending):
+            sl = slice(j * g, (j + 1) * g)
             row["characteristic"] = {
                 "sample": int(model.index[tight]), "feeds_mm_s": (grid * 1e3).tolist(),
-                "margin_N_per_m": ch.margin.tolist(), "gamma_deg": np.degrees(ch.gamma).tolist(),
-                "force_N": ch.force.tolist(), "deflection_mm": (ch.deflection_norm * 1e3).tolist(),
-                "stable": ch.stable.tolist(), "ok": ch.all_ok.tolist(),
+                "margin_N_per_m": ch.margin[sl].tolist(),
+                "gamma_deg": np.degrees(ch.gamma[sl]).tolist(), "force_N": ch.force[sl].tolist(),
+                "deflection_mm": (ch.deflection_norm[sl] * 1e3).tolist(),
+                "stable": ch.stable[sl].tolist(), "ok": ch.all_ok[sl].tolist(),
             }
-        rows.append(row)
     return rows
 
 
