@@ -80,6 +80,11 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     print(section_table(res))
     print(f"\n{res.method}: cycle {res.cycle_time:.2f} s (process {res.process_time:.2f} s), "
           f"{len(s)} sections; solver {res.solver.status} ({res.solver.iterations} iterations)")
+    if res.cut_time > 0:
+        print(f"cutting {res.cut_time:.2f} s; no plan with sections >= "
+              f"{res.limits.section_length_min * 1e3:g} mm can cut faster than "
+              f"{res.cut_time_bound:.2f} s under these limits "
+              f"({100 * (res.cut_time / res.cut_time_bound - 1):.1f} % above it)")
     print("wrote:")
     for k, v in written.items():
         for p in v if isinstance(v, list) else [v]:

@@ -1,8 +1,10 @@
 """Section boundaries and feeds by CasADi + IPOPT: the fastest cut inside every limit (SPEC §8).
 
-Each ``cut`` run is first divided into *cells* at least ``section_length_min`` long
-(:func:`planner.sections.split_by_length`); a cell is the finest section the plan may have. With
-x_c = f_c / f_ref the cell feeds scaled to order one (f_ref = ``feed_max``), IPOPT solves
+Each ``cut`` run is first divided into *cells*, each at least ``section_length_min`` long, by
+the exact fastest split of :func:`planner.partition.fastest_split` (dynamic programming over the
+samples: where to cut is combinatorial, which IPOPT cannot decide); a cell is the finest section
+the plan may have. With x_c = f_c / f_ref the cell feeds scaled to order one (f_ref =
+``feed_max``), IPOPT solves
 
     minimise   Σ_c (L_c / L) / x_c  +  w Σ_e t_e                 (machining time / (L / f_ref))
     subject to feed_min / f_ref ≤ x_c ≤ min_{k ∈ c} f̂_k / f_ref   (every sample's limits)
@@ -13,8 +15,9 @@ where f̂_k is sample k's feed ceiling (:meth:`planner.evaluate.PathModel.ceilin
 margin, force, deflection and power, each evaluated with the full CCT model) and L_c the cell's
 length. The ℓ1 term (w = section_change_cost / (L / f_ref)) prices every feed change, so the
 optimum is piecewise constant: neighbouring cells whose feeds come out equal merge into one
-section, and IPOPT has thereby chosen the section boundaries. The problem is convex (1/x is convex
-for x > 0, the rest is linear), so IPOPT's solution is the global optimum.
+section, so IPOPT removes the boundaries that do not pay. The problem is convex (1/x is convex for
+x > 0, the rest is linear), so IPOPT's feeds are the global optimum for those cells; without a
+feed-change bound or price the cells at their ceilings are the optimum over every split.
 
 The solve is warm-started from the thesis baseline's feeds. An unconverged solve raises
 :class:`PlanSolverError`; the plan never reaches the exporter.
@@ -29,7 +32,8 @@ import casadi as ca
 import numpy as np
 
 from models.errors import CctmillError
-from planner.sections import CUT, Section, split_by_length
+from planner.partition import fastest_split
+from planner.sections import CUT, Section
 
 __all__ = [
     "MAX_ITERATIONS",
@@ -92,8 +96,9 @@ class SolveResult:
                 "objective": self.objective}
 
 
-def _cells(runs: list[tuple[int, int, int]], ds: np.ndarray, length: float) -> list[list[tuple[int, int]]]:
-    return [split_by_length(ds, a, b, length) for a, b, kind in runs if kind == CUT]
+def _cells(runs: list[tuple[int, int, int]], ds: np.ndarray, ceiling: np.ndarray,
+           length: float) -> list[list[tuple[int, int]]]:
+    return [fastest_split(ds, ceiling, a, b, length) for a, b, kind in runs if kind == CUT]
 
 
 def optimize_sections(runs: list[tuple[int, int, int]], ds: np.ndarray, ceiling: np.ndarray,
@@ -123,7 +128,7 @@ def optimize_sections(runs: list[tuple[int, int, int]], ds: np.ndarray, ceiling:
     """
     t0 = time.perf_counter()
     f_ref = feed_max if f_ref is None else f_ref
-    groups = _cells(runs, ds, section_length_min)
+    groups = _cells(runs, ds, ceiling, section_length_min)
     cells = [c for g in groups for c in g]
     nc = len(cells)
     if nc == 0:

@@ -30,6 +30,7 @@ from models.errors import CctmillError
 from planner.evaluate import CONSTRAINTS, Ceilings, Evaluation, Limits, PathModel
 from planner.job import Job
 from planner.optimize import SolveResult, optimize_sections
+from planner.partition import cut_time_bound
 from planner.plan_file import KINDS, write_plan
 from planner.prepare import Prepared, prepare
 from planner.sections import (
@@ -101,6 +102,9 @@ class PlanResult:
         safety_factor: the thesis safety factor used.
         wall_times: wall time of each stage [s].
         section_rows: the plan.json ``sections`` list.
+        cut_time_bound: the least cut time Σ L/f any plan with sections of at least
+            ``section_length_min`` can have under these limits [s]
+            (:func:`planner.partition.cut_time_bound`).
     """
 
     method: str
@@ -117,6 +121,14 @@ class PlanResult:
     safety_factor: float
     wall_times: dict[str, float] = field(default_factory=dict)
     section_rows: list[dict[str, Any]] = field(default_factory=list)
+    cut_time_bound: float = float("nan")
+
+    @property
+    def cut_time(self) -> float:
+        """Σ ds/feed over the cut samples [s]."""
+        ds = step_lengths(self.prep.path.s)
+        sel = self.kinds == CUT
+        return float(np.sum(ds[sel] / self.feed[sel]))
 
     @property
     def cycle_time(self) -> float:
@@ -275,6 +287,7 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
                         solver=solver, limits=limits, safety_factor=sf, wall_times=walls)
     t = time.perf_counter()
     result.section_rows = _section_rows(result, ceiling, pos)
+    result.cut_time_bound = cut_time_bound(kinds, ds, ceiling, limits.section_length_min)
     walls["report_rows_s"] = time.perf_counter() - t
     return result
 
@@ -450,6 +463,8 @@ def summary(res: PlanResult) -> dict[str, Any]:
         "samples": len(res.prep.path), "cut_samples": len(res.model),
         "sections": len(res.section_rows), "cut_sections": len(cut),
         "binding_counts": counts,
+        "cut_time_s": res.cut_time,
+        "cut_time_bound_s": res.cut_time_bound,
         "robot_limited_sections": sum(1 for r in res.section_rows if r["robot_limited"]),
         "force_max_N": float(ev.force.max()) if ev.force.size else None,
         "deflection_max_mm": float(ev.deflection_norm.max() * 1e3) if ev.force.size else None,

@@ -208,6 +208,9 @@ def write_report(res, folder: str | os.PathLike) -> dict[str, Path]:
     prep, lim = res.prep, res.limits
     summ = {"method": res.method, "cycle time [s]": f"{res.cycle_time:.2f}",
             "process time Σ L/f [s]": f"{res.process_time:.2f}",
+            "cutting time [s]": (f"{res.cut_time:.2f}; no plan with sections ≥ "
+                                 f"{lim.section_length_min * 1e3:g} mm can cut in less than "
+                                 f"{res.cut_time_bound:.2f}"),
             "sections (cut)": f"{len(res.section_rows)} "
                               f"({sum(r['kind'] == 'cut' for r in res.section_rows)})",
             "robot-limited sections": sum(r["robot_limited"] for r in res.section_rows),

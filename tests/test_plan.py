@@ -21,7 +21,8 @@ from planner.job import parse_job
 from planner.plan import PlanInfeasibleError, plan_prepared, write_plan_outputs
 from planner.plan_file import BINDINGS, SAMPLE_ARRAYS, load_plan
 from planner.prepare import prepare
-from planner.sections import CUT, RAPID
+from planner.partition import fastest_split, split_time
+from planner.sections import CUT, RAPID, kind_runs, step_lengths
 
 DEMO = Path(str(resources.files("planner").joinpath("data/demo/demo_job.toml")))
 
@@ -78,6 +79,23 @@ def test_optimizer_beats_thesis_beats_constant(demo_plans):
     assert t["optimize"] < 0.95 * t["thesis"]
     assert demo_plans["optimize"].solver.success
     assert demo_plans["optimize"].solver.status == "Solve_Succeeded"
+
+
+def test_optimum_reaches_the_fastest_split_bound(demo_plans):
+    """Without a feed-change bound the optimiser's cut time is the exact split optimum's."""
+    res = demo_plans["optimize"]
+    ds = step_lengths(res.prep.path.s)
+    ceiling = np.full(ds.size, np.nan)
+    ceiling[res.model.index] = res.ceilings.feed
+    bound = sum(split_time(ds, ceiling, fastest_split(ds, ceiling, a, b,
+                                                      res.limits.section_length_min))
+                for a, b, kind in kind_runs(res.kinds) if kind == CUT)
+    assert res.cut_time_bound == pytest.approx(bound, rel=1e-12)
+    cut = res.kinds == CUT
+    planned = {m: float(np.sum(ds[cut] / r.feed[cut])) for m, r in demo_plans.items()}
+    assert bound * (1 - 1e-9) <= planned["optimize"] <= bound * (1 + 2e-3)
+    # no plan with sections >= section_length_min is faster; the thesis is above it
+    assert planned["thesis"] > 1.05 * bound
 
 
 def test_sections_partition_the_path_and_never_mix_kinds(demo_plans):
