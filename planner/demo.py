@@ -100,13 +100,21 @@ def run_demo_job(out: Path) -> DemoResult:
         f"{ev.deflection_norm.max() * 1e3:.3f} mm")
     res_out.lines.append(
         f"== Supervised run (simulated KukaVarProxy controller over loopback, simulated cut from "
-        f"section {sup['section']} at s = {sup['start_mm']:.0f} mm): {sup['scenario']}; "
+        f"s = {sup['start_mm']:.0f} mm, in section {sup['section']} as the model error starts): "
+        f"{sup['scenario']}; "
         f"{len(episodes)} chatter episode(s) caught"
         + "".join(f"; section {e['section']}: override {e['override_start']:.0f} -> "
-                  f"{e['override_min']:.0f} %, detected {e.get('detection_delay_ms')} ms after the "
-                  f"chatter became visible, gone {e.get('settling_ms')} ms after the alarm"
-                  for e in episodes))
+                  f"{e['override_min']:.0f} %, " + _episode_timing(e) for e in episodes))
     return res_out
+
+
+def _episode_timing(e: dict[str, Any]) -> str:
+    delay, settle = e.get("detection_delay_ms"), e.get("settling_ms")
+    seen = ("alarm before the simulated chatter reached the visible amplitude (a transient, "
+            "not chatter)" if delay is None
+            else f"detected {delay:.0f} ms after the chatter became visible")
+    gone = "" if settle is None else f", gone {settle:.0f} ms after the alarm"
+    return seen + gone
 
 
 #: Files of the supervised run, in the demo's output folder.
@@ -119,11 +127,16 @@ DEMO_STABLE_FRACTION = 0.7
 DEMO_DURATION_S = 5.0
 
 
+#: The simulated cut reaches the chosen section this long before the model error's onset [s].
+DEMO_LEAD_S = 0.3
+
+
 def _demo_section(sections: list[dict[str, Any]]) -> tuple[dict[str, Any], float]:
-    """The first cut section (at least 5 mm/s, margin falling with feed there) and the margin
-    offset that puts its stability boundary at :data:`DEMO_STABLE_FRACTION` of its feed."""
+    """The longest-running cut section (at least 5 mm/s, margin falling with feed there) and the
+    margin offset that puts its stability boundary at :data:`DEMO_STABLE_FRACTION` of its feed."""
     import numpy as np
 
+    best: tuple[float, dict[str, Any], float] | None = None
     for sec in sections:
         ch = sec.get("characteristic")
         if sec["kind"] != "cut" or not ch or sec["feed_mm_s"] < 5.0:
@@ -132,9 +145,26 @@ def _demo_section(sections: list[dict[str, Any]]) -> tuple[dict[str, Any], float
         m = np.asarray(ch["margin_N_per_m"])
         at = float(np.interp(sec["feed_mm_s"], f, m))
         below = float(np.interp(DEMO_STABLE_FRACTION * sec["feed_mm_s"], f, m))
-        if below > at:
-            return sec, below
-    raise RuntimeError("the demo plan has no cut section to simulate chatter on")
+        if below > at and (best is None or sec["time_s"] > best[0]):
+            best = (float(sec["time_s"]), sec, below)
+    if best is None:
+        raise RuntimeError("the demo plan has no cut section to simulate chatter on")
+    return best[1], best[2]
+
+
+def _start_before(sections: list[dict[str, Any]], sec: dict[str, Any], lead_s: float) -> float:
+    """Arc length [m] from which the planned motion reaches ``sec`` after ``lead_s`` (walking back
+    through the cut sections before it, at their planned speed)."""
+    s, left = float(sec["s_start_m"]), lead_s
+    for prev in reversed(sections[: sec["index"]]):
+        if prev["kind"] != "cut" or prev["s_end_m"] < s - 1e-9 or left <= 0:
+            break
+        t = float(prev["time_s"])
+        if t >= left:
+            return s - left / t * (s - float(prev["s_start_m"]))
+        left -= t
+        s = float(prev["s_start_m"])
+    return s
 
 
 def supervise_demo(plan_path: Path, out: Path) -> dict[str, Any]:
@@ -152,7 +182,7 @@ def supervise_demo(plan_path: Path, out: Path) -> dict[str, Any]:
 
     plan = load_plan(plan_path)
     sec, offset = _demo_section(plan.sections)
-    start_mm = sec["s_start_m"] * 1e3
+    start_mm = _start_before(plan.sections, sec, DEMO_ONSET_S - DEMO_LEAD_S) * 1e3
     args = build_parser().parse_args([
         "supervise", "--plan", str(plan_path), "--signal", "sim", "--robot", "sim",
         "--log", str(out / SUPERVISE_LOG), "--plot", str(out / SUPERVISE_PLOT),
@@ -165,5 +195,5 @@ def supervise_demo(plan_path: Path, out: Path) -> dict[str, Any]:
     return {"summary": summary, "section": sec["index"], "start_mm": start_mm,
             "scenario": f"from t = {DEMO_ONSET_S:g} s the arm is {offset:.3g} N/m less stable "
                         f"than the model (which puts the boundary at {DEMO_STABLE_FRACTION:.0%} of "
-                        f"the planned feed in section {sec['index']}, and lower in the sections "
-                        "after it, whose margins are smaller)"}
+                        f"the planned feed in section {sec['index']}; the sections after it "
+                        "have margins of their own)"}

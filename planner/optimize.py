@@ -62,11 +62,15 @@ class PlanSolverError(CctmillError):
     Attributes:
         status: IPOPT's return status.
         section: index of the worst cell (largest constraint violation), or ``None``.
+        constraint: the constraint violated most there (``deflection``, ``force``, …, ``feed_min``,
+            ``feed_change``), or the one closest to binding if none is violated.
     """
 
-    def __init__(self, status: str, message: str, section: int | None = None) -> None:
+    def __init__(self, status: str, message: str, section: int | None = None,
+                 constraint: str | None = None) -> None:
         self.status = status
         self.section = section
+        self.constraint = constraint
         super().__init__(message)
 
 
@@ -187,15 +191,36 @@ def optimize_sections(runs: list[tuple[int, int, int]], ds: np.ndarray, ceiling:
                          solve_time=solve, objective=float(sol["f"]))
     xs = np.asarray(sol["x"], float).reshape(-1)[:nc]
     if not result.success:
-        worst = int(np.argmax(np.maximum(xs - ubx[:nc], lbx[:nc] - xs)))
+        worst, what, amount = _worst_cell(xs, lbx[:nc], ubx[:nc], edges, feed_change_max, f_ref)
+        a, b = cells[worst]
+        tight = a + int(np.nanargmin(ceiling[a:b]))
+        name = str(ceiling_binding[tight]) if what == "ceiling" else what
         raise PlanSolverError(status, f"the feed optimisation did not converge (IPOPT: {status}, "
                               f"{result.iterations} iterations); worst at cell {worst} "
-                              f"(samples {cells[worst][0]}..{cells[worst][1] - 1}); try "
-                              "--method thesis, or report this job", section=worst)
+                              f"(samples {a}..{b - 1}): {name} "
+                              f"{'violated by' if amount > 0 else 'closest to binding, slack'} "
+                              f"{abs(amount) * f_ref * 1e3:.3g} mm/s; try --method thesis, or "
+                              "report this job", section=worst, constraint=name)
     xs = np.clip(xs, lbx[:nc], ubx[:nc])
     sections = _merge(groups, xs * (f_ref / feed_max), feed_max, ceiling, ceiling_binding,
                       feed_change_max)
     return sections, result
+
+
+def _worst_cell(xs: np.ndarray, lo: np.ndarray, hi: np.ndarray, edges: list[tuple[int, int]],
+                feed_change_max: float | None, f_ref: float) -> tuple[int, str, float]:
+    """The cell and constraint with the largest violation (or least slack) at ``xs`` (scaled).
+
+    Returns ``(cell, "ceiling" | "feed_min" | "feed_change", violation)``, violation < 0 a slack.
+    """
+    cand = [(xs - hi, "ceiling"), (lo - xs, "feed_min")]
+    if feed_change_max is not None and edges:
+        i0 = np.array([e[0] for e in edges])
+        over = np.full(xs.size, -np.inf)
+        np.maximum.at(over, i0 + 1, np.abs(xs[i0 + 1] - xs[i0]) - feed_change_max / f_ref)
+        cand.append((over, "feed_change"))
+    best = max(((float(v.max()), int(v.argmax()), name) for v, name in cand), key=lambda c: c[0])
+    return best[1], best[2], best[0]
 
 
 def _merge(groups: list[list[tuple[int, int]]], xs: np.ndarray, f_ref: float,

@@ -111,6 +111,9 @@ def plot_along_path(res, path: str | os.PathLike) -> Path:
     ax.plot(s, m, color="#d62728", lw=1.0, label=f"margin ({prep.job.model.process_model} model)")
     ax.axhline(max(lim.margin_min, 0.0), color="#d62728", ls="--", lw=1.0, label="required")
     ax.set_yscale("symlog", linthresh=1e3)
+    top = float(np.nanmax(m)) if np.any(np.isfinite(m)) else 1e3
+    # 0 and the decades above the linear band only (the default puts 10² on top of 0)
+    ax.set_yticks([0.0] + [10.0 ** k for k in range(3, max(4, int(np.ceil(np.log10(max(top, 1e3)))) + 1))])
     ax.set_ylabel("chatter margin [N/m]")
     ax.legend(fontsize=7, loc="upper right")
     ax = axes[5]

@@ -141,6 +141,9 @@ def test_demo_writes_outputs(tmp_path, capsys):
     assert "thesis baseline" in headline[0] and "deflection" in headline[0]
     caught = int(headline[0].rsplit("chatter episodes caught", 1)[1])
     assert caught >= 1
+    # what was caught is the simulated chatter, not a transient: the first alarm follows it
+    supervised = next(line for line in out.splitlines() if line.startswith("== Supervised run"))
+    assert "ms after the chatter became visible" in supervised.split("; section ", 2)[1], supervised
 
 
 @pytest.mark.skipif(shutil.which("cctmill") is None and not (

@@ -153,6 +153,9 @@ def test_unconverged_optimisation_is_an_error_naming_a_section():
     ceiling = 0.01 + 0.005 * np.sin(40 * s)
     binding = np.full(s.size, "force")
     with pytest.raises(PlanSolverError, match=r"did not converge \(IPOPT: Maximum_Iterations_Exceeded"
-                       r".*cell \d+ \(samples \d+\.\.\d+\)") as err:
+                       r".*cell \d+ \(samples \d+\.\.\d+\): (force|feed_min|feed_change) "
+                       r"(violated by|closest to binding)") as err:
         optimize_sections(runs, ds, ceiling, binding, 1e-3, 0.04, 0.01, 1e-3, 0.02, max_iter=1)
     assert err.value.status == "Maximum_Iterations_Exceeded"
+    assert err.value.constraint in {"force", "feed_min", "feed_change"}
+    assert err.value.section is not None
