@@ -18,10 +18,10 @@ from planner.check import check_result
 from planner.cli import main
 from planner.evaluate import CONSTRAINTS
 from planner.job import parse_job
+from planner.partition import fastest_split, split_time
 from planner.plan import PlanInfeasibleError, plan_prepared, write_plan_outputs
 from planner.plan_file import BINDINGS, SAMPLE_ARRAYS, load_plan
 from planner.prepare import prepare
-from planner.partition import fastest_split, split_time
 from planner.sections import CUT, RAPID, kind_runs, step_lengths
 
 DEMO = Path(str(resources.files("planner").joinpath("data/demo/demo_job.toml")))
