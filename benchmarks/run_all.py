@@ -98,7 +98,8 @@ def _more_rows(speed: dict, plans: dict, krl_rows: list[dict], sup: dict,
     rows.append(("planner: demo cycle time, optimize vs thesis vs constant",
                  f"{d['optimize']['cycle_time_s']:.1f} / {d['thesis']['cycle_time_s']:.1f} / "
                  f"{d['constant']['cycle_time_s']:.1f} s ({100 * plans['demo_gain_vs_thesis']:.1f} % "
-                 "shorter than thesis; no plan with sections ≥ the job's section_length_min can cut more than "
+                 "shorter than thesis; no plan with sections ≥ the job's section_length_min can "
+                 "cut more than "
                  f"{100 * plans['demo_cut_gain_ceiling']:.1f} % faster than thesis)",
                  "≥ 20 % shorter than thesis", _verdict(t["demo_gain"])))
     rows.append((f"planner: {lg['samples']:,}-sample job planned (prepare + plan), peak memory",
