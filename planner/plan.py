@@ -46,6 +46,7 @@ from planner.sections import (
 )
 from planner.thesis import thesis_sections
 from planner.timing import Timing, time_path
+from robot_io.krl_reader import matrices_to_abc
 
 __all__ = [
     "CHARACTERISTIC_FEEDS",
@@ -379,14 +380,6 @@ def _section_rows(res: PlanResult, ceiling: np.ndarray, pos: np.ndarray) -> list
     return rows
 
 
-def _abc_deg(rot: np.ndarray) -> np.ndarray:
-    """KUKA A, B, C [deg] of rotation matrices (m, 3, 3), R = Rz(A) Ry(B) Rx(C)."""
-    a = np.arctan2(rot[:, 1, 0], rot[:, 0, 0])
-    b = np.arctan2(-rot[:, 2, 0], np.hypot(rot[:, 0, 0], rot[:, 1, 0]))
-    c = np.arctan2(rot[:, 2, 1], rot[:, 2, 2])
-    return np.degrees(np.column_stack([a, b, c]))
-
-
 def _samples(res: PlanResult) -> dict[str, np.ndarray]:
     prep, ev, model = res.prep, res.evaluation, res.model
     path, job = prep.path, prep.job
@@ -408,7 +401,7 @@ def _samples(res: PlanResult) -> dict[str, np.ndarray]:
     defl = spread(ev.deflection, (3,)) @ base[:3, :3]  # base → workpiece axes
     return {
         "s_m": path.s, "q_rad": prep.kinematics.q, "position_wp_m": path.position_wp,
-        "abc_wp_deg": _abc_deg(rot_wp), "tool_axis_wp": path.tool_axis_wp, "section": sec,
+        "abc_wp_deg": matrices_to_abc(rot_wp), "tool_axis_wp": path.tool_axis_wp, "section": sec,
         "kind": res.kinds, "arc": arc, "move": path.move, "line": path.line, "source_file": path.file,
         "feed_mm_s": res.feed * 1e3, "speed_mm_s": res.timing.speed * 1e3,
         "time_s": res.timing.time, "force_N": spread(ev.force),

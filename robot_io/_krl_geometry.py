@@ -17,6 +17,7 @@ __all__ = [
     "abc_to_matrix",
     "circle_through",
     "frame_matrix",
+    "matrices_to_abc",
     "matrix_to_abc",
     "rotate_about",
 ]
@@ -54,6 +55,18 @@ def matrix_to_abc(rot: np.ndarray) -> tuple[float, float, float]:
         a = math.atan2(-float(rot[0, 1]), float(rot[1, 1]))
         c = 0.0
     return math.degrees(a), math.degrees(b), math.degrees(c)
+
+
+def matrices_to_abc(rot: np.ndarray) -> np.ndarray:
+    """:func:`matrix_to_abc` of many rotation matrices, shape (m, 3, 3) → (m, 3) [deg]."""
+    rot = np.asarray(rot, float)
+    cb = np.hypot(rot[:, 0, 0], rot[:, 1, 0])
+    b = np.arctan2(-rot[:, 2, 0], cb)
+    regular = cb > GIMBAL_TOL
+    a = np.where(regular, np.arctan2(rot[:, 1, 0], rot[:, 0, 0]),
+                 np.arctan2(-rot[:, 0, 1], rot[:, 1, 1]))
+    c = np.where(regular, np.arctan2(rot[:, 2, 1], rot[:, 2, 2]), 0.0)
+    return np.degrees(np.column_stack([a, b, c]))
 
 
 def frame_matrix(x_m: float, y_m: float, z_m: float, a_deg: float, b_deg: float,

@@ -104,6 +104,7 @@ from robot_io._krl_geometry import (
     abc_to_matrix,
     circle_through,
     frame_matrix,
+    matrices_to_abc,
     matrix_to_abc,
 )
 from robot_io._krl_interp import (
@@ -130,6 +131,7 @@ __all__ = [
     "abc_to_matrix",
     "circle_through",
     "frame_matrix",
+    "matrices_to_abc",
     "matrix_to_abc",
     "read_krl",
     "read_krl_text",

@@ -24,6 +24,7 @@ from models.errors import InputError
 from robot_io.krl_reader import (
     KrlReader,
     abc_to_matrix,
+    matrices_to_abc,
     matrix_to_abc,
     read_krl,
     read_krl_text,
@@ -496,3 +497,16 @@ def test_speed_of_a_long_program() -> None:
     dt = time.perf_counter() - t0
     assert len(tp.moves) == 10_001
     assert dt < 2.5, f"10 000 LIN lines took {dt:.2f} s (about 0.5 s expected)"
+
+
+def test_vectorised_abc_matches_the_scalar_one_and_its_gimbal_rule():
+    rng = np.random.default_rng(11)
+    abc = rng.uniform(-179, 179, size=(50, 3)) * [1, 0.49, 1]
+    rots = [abc_to_matrix(*row) for row in abc]
+    # B = ±90°: A and C are not separable; both functions put the turn into A (C = 0)
+    rots += [abc_to_matrix(30.0, 90.0, 20.0), abc_to_matrix(-45.0, -90.0, 10.0)]
+    many = matrices_to_abc(np.array(rots))
+    for r, row in zip(rots, many, strict=True):
+        np.testing.assert_allclose(row, matrix_to_abc(r), atol=1e-9)
+        np.testing.assert_allclose(abc_to_matrix(*row), r, atol=1e-9)
+    assert many[-1][2] == 0.0 and many[-2][2] == 0.0
