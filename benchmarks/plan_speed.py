@@ -123,8 +123,8 @@ def _pointwise(res) -> dict:
     return {"cycle_time_s": timing.cycle_time, "cut_time_s": float(np.sum(ds[cut] / feed[cut]))}
 
 
-def section_length_sweep(lengths_mm: tuple[float, ...] = (10.0, 5.0, 2.0)) -> list[dict]:
-    """optimize and thesis on the demo job with other minimum section lengths."""
+def section_length_sweep(shorter_mm: tuple[float, ...] = (5.0, 2.0)) -> list[dict]:
+    """optimize and thesis on the demo job with its own and shorter minimum section lengths."""
     import dataclasses
 
     from planner.plan import plan_prepared
@@ -133,7 +133,7 @@ def section_length_sweep(lengths_mm: tuple[float, ...] = (10.0, 5.0, 2.0)) -> li
     prep = prepare(_job())
     base = plan_prepared(prep, "constant").limits
     rows = []
-    for length in lengths_mm:
+    for length in (base.section_length_min * 1e3, *shorter_mm):
         lim = dataclasses.replace(base, section_length_min=length * 1e-3)
         opt = plan_prepared(prep, "optimize", limits=lim)
         th = plan_prepared(prep, "thesis", limits=lim)

@@ -32,7 +32,7 @@ import casadi as ca
 import numpy as np
 
 from models.errors import CctmillError
-from planner.partition import fastest_split
+from planner.partition import fastest_splits
 from planner.sections import CUT, Section
 
 __all__ = [
@@ -100,17 +100,13 @@ class SolveResult:
                 "objective": self.objective}
 
 
-def _cells(runs: list[tuple[int, int, int]], ds: np.ndarray, ceiling: np.ndarray,
-           length: float) -> list[list[tuple[int, int]]]:
-    return [fastest_split(ds, ceiling, a, b, length) for a, b, kind in runs if kind == CUT]
-
-
 def optimize_sections(runs: list[tuple[int, int, int]], ds: np.ndarray, ceiling: np.ndarray,
                       ceiling_binding: np.ndarray, feed_min: float, feed_max: float,
                       section_length_min: float, feed_change_max: float | None,
                       change_cost: float, warm: np.ndarray | None = None,
-                      f_ref: float | None = None,
-                      max_iter: int = MAX_ITERATIONS) -> tuple[list[Section], SolveResult]:
+                      f_ref: float | None = None, max_iter: int = MAX_ITERATIONS,
+                      cells: list[list[tuple[int, int]]] | None = None,
+                      ) -> tuple[list[Section], SolveResult]:
     """The optimised sections of the ``cut`` runs.
 
     Args:
@@ -126,13 +122,15 @@ def optimize_sections(runs: list[tuple[int, int, int]], ds: np.ndarray, ceiling:
         warm: per-sample feeds to start from [m/s], (n,) (e.g. the thesis baseline).
         f_ref: feed scale [m/s] (default ``feed_max``); the answer does not depend on it.
         max_iter: IPOPT iteration limit.
+        cells: the cells of every cut run, if already made
+            (:func:`planner.partition.fastest_splits` of these arguments).
 
     Returns:
         The cut sections (in path order) and the solver record.
     """
     t0 = time.perf_counter()
     f_ref = feed_max if f_ref is None else f_ref
-    groups = _cells(runs, ds, ceiling, section_length_min)
+    groups = fastest_splits(runs, ds, ceiling, section_length_min) if cells is None else cells
     cells = [c for g in groups for c in g]
     nc = len(cells)
     if nc == 0:

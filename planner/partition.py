@@ -22,9 +22,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from planner.sections import CUT, kind_runs, split_by_length
+from planner.sections import CUT, split_by_length
 
-__all__ = ["cut_time_bound", "fastest_split", "split_time"]
+__all__ = ["cut_time_bound", "fastest_split", "fastest_splits", "split_time"]
 
 
 def _section_times(length: np.ndarray, ceiling_min: np.ndarray) -> np.ndarray:
@@ -89,11 +89,18 @@ def split_time(ds: np.ndarray, ceiling: np.ndarray, pieces: list[tuple[int, int]
     return float(_section_times(length, low).sum())
 
 
-def cut_time_bound(kinds: np.ndarray, ds: np.ndarray, ceiling: np.ndarray,
-                   length_min: float) -> float:
-    """The least cut time Σ L/f any plan with sections ≥ ``length_min`` can have [s].
+def fastest_splits(runs: list[tuple[int, int, int]], ds: np.ndarray, ceiling: np.ndarray,
+                   length_min: float) -> list[list[tuple[int, int]]]:
+    """:func:`fastest_split` of every ``cut`` run of ``runs`` (:func:`planner.sections.kind_runs`)."""
+    return [fastest_split(ds, ceiling, a, b, length_min) for a, b, kind in runs if kind == CUT]
 
-    Every ``cut`` run split by :func:`fastest_split`, every section at its lowest ceiling.
+
+def cut_time_bound(splits: list[list[tuple[int, int]]], ds: np.ndarray, ceiling: np.ndarray) -> float:
+    """The least cut time Σ L/f any plan with sections ≥ the minimum length can have [s].
+
+    Args:
+        splits: :func:`fastest_splits` of the path's cut runs.
+        ds: step length per sample [m], (n,).
+        ceiling: feed ceiling per sample [m/s], (n,).
     """
-    return sum(split_time(ds, ceiling, fastest_split(ds, ceiling, a, b, length_min))
-               for a, b, kind in kind_runs(np.asarray(kinds)) if kind == CUT)
+    return sum(split_time(ds, ceiling, pieces) for pieces in splits)

@@ -30,7 +30,7 @@ from models.errors import CctmillError
 from planner.evaluate import CONSTRAINTS, Ceilings, Evaluation, Limits, PathModel
 from planner.job import Job
 from planner.optimize import SolveResult, optimize_sections
-from planner.partition import cut_time_bound
+from planner.partition import cut_time_bound, fastest_splits
 from planner.plan_file import KINDS, write_plan
 from planner.prepare import Prepared, prepare
 from planner.sections import (
@@ -251,6 +251,7 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
         return model.evaluate(feeds, pos[samples]).gamma
 
     t = time.perf_counter()
+    splits = fastest_splits(runs, ds, ceiling, limits.section_length_min)
     solver = SolveResult("n/a", True, 0, 0.0, 0.0, 0.0)
     if method == "constant":
         f = float(np.nanmin(ceiling)) if len(model) else limits.feed_max
@@ -270,7 +271,7 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
             cut, solver = optimize_sections(
                 runs, ds, ceiling, binding, limits.feed_min, limits.feed_max,
                 limits.section_length_min, limits.feed_change_max,
-                job.plan.section_change_cost_s, warm=warm, f_ref=f_ref)
+                job.plan.section_change_cost_s, warm=warm, f_ref=f_ref, cells=splits)
     walls["sections_s"] = time.perf_counter() - t
     sections = sorted(cut + _other_sections(runs, prep, limits), key=lambda x: x.start)
     feed = np.empty(n)
@@ -288,7 +289,7 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
                         solver=solver, limits=limits, safety_factor=sf, wall_times=walls)
     t = time.perf_counter()
     result.section_rows = _section_rows(result, ceiling, pos)
-    result.cut_time_bound = cut_time_bound(kinds, ds, ceiling, limits.section_length_min)
+    result.cut_time_bound = cut_time_bound(splits, ds, ceiling)
     walls["report_rows_s"] = time.perf_counter() - t
     return result
 
