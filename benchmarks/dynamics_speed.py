@@ -183,7 +183,7 @@ class Deflection:
 
 
 def demo_path() -> tuple[Deflection, dict]:
-    from planner.evaluate import model_parameters
+    from planner.ceilings import model_parameters
     from planner.job import load_job
     from planner.prepare import prepare
 

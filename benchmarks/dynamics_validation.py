@@ -134,7 +134,7 @@ def workspace(rpm: float, a_e: float, a_p: float, mode: str, n: int = 5) -> tupl
         rows.append(f"| {x:.0f} | " + " | ".join(cells) + " |")
     OUT.mkdir(exist_ok=True)
     path = OUT / f"dynamic_map_{rpm:.0f}rpm.png"
-    from planner.plots import _figure, _save
+    from planner.report.plots import _figure, _save
 
     plt, fig = _figure(figsize=(6, 5))
     ax = fig.add_subplot(1, 1, 1)

@@ -1,7 +1,7 @@
 """KRL export round trip: write → lint → read back, for the demo job and a long paged job.
 
 For each case: the program is written by ``robot_io.krl`` (through ``planner.export`` for the demo
-job), checked by ``robot_io.krl_lint`` and read back with ``robot_io.krl_reader``. Printed: moves,
+job), checked by ``robot_io.krl.lint`` and read back with ``robot_io.krl.reader``. Printed: moves,
 CIRCs, pages, the largest position and orientation error of a move target, the largest distance
 of a plan sample absorbed inside a CIRC from the read-back arc, whether every feed read back is
 exactly its ``.dat`` value, lint problems, and write/read time (this machine, one run).
@@ -30,8 +30,8 @@ if str(REPO) not in sys.path:
 from planner.export import plan_to_krl  # noqa: E402
 from planner.plan_file import load_plan  # noqa: E402
 from robot_io.krl import KrlMove, KrlProgramSpec, KrlSection, write_krl  # noqa: E402
-from robot_io.krl_lint import lint_krl  # noqa: E402
-from robot_io.krl_reader import abc_to_matrix, read_krl  # noqa: E402
+from robot_io.krl.lint import lint_krl  # noqa: E402
+from robot_io.krl.reader import abc_to_matrix, read_krl  # noqa: E402
 from robot_io.toolpath import MoveKind  # noqa: E402
 
 SEED = 20240611

@@ -1,11 +1,11 @@
 """Robot link latency over loopback: KukaVarProxy write round trip and RSI reply time.
 
 1. KVP: ``$OV_PRO`` write round trips (request → reply) and write + read-back pairs (what
-   :class:`robot_io.kvp.KvpClient` does per override change) of :class:`~robot_io.kvp.KvpConnection`
-   against :class:`~robot_io.kvp_sim.KvpSimServer`; py-openshowvar's write on the same server when
+   :class:`robot_io.links.kvp.KvpClient` does per override change) of :class:`~robot_io.links.kvp.KvpConnection`
+   against :class:`~robot_io.links.kvp_sim.KvpSimServer`; py-openshowvar's write on the same server when
    installed; baseline: a bare TCP echo of the same request bytes (thread + loopback cost only).
-2. RSI: :class:`~robot_io.rsi_sim.RsiSimController` at 4 ms and 12 ms against
-   :class:`~robot_io.rsi.RsiServer`: round trip (``<Rob>`` sent → its ``<Sen>`` received, replies
+2. RSI: :class:`~robot_io.links.rsi_sim.RsiSimController` at 4 ms and 12 ms against
+   :class:`~robot_io.links.rsi.RsiServer`: round trip (``<Rob>`` sent → its ``<Sen>`` received, replies
    after the deadline included), the server's own receive-to-reply time, and late cycles (no reply by
    the end of the cycle; "never answered" = no reply at all); baseline: a bare UDP echo ping-pong of
    the same telegram.
@@ -36,11 +36,11 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from robot_io.kvp import FN_WRITE, KvpConnection, KvpRequest, pack_request  # noqa: E402
-from robot_io.kvp_sim import KvpSimServer  # noqa: E402
-from robot_io.rsi import RsiServer, build_rob  # noqa: E402
-from robot_io.rsi_process import RsiProcessServer  # noqa: E402
-from robot_io.rsi_sim import RsiSimController  # noqa: E402
+from robot_io.links.kvp import FN_WRITE, KvpConnection, KvpRequest, pack_request  # noqa: E402
+from robot_io.links.kvp_sim import KvpSimServer  # noqa: E402
+from robot_io.links.rsi import RsiServer, build_rob  # noqa: E402
+from robot_io.links.rsi_process import RsiProcessServer  # noqa: E402
+from robot_io.links.rsi_sim import RsiSimController  # noqa: E402
 
 CYCLES_S = (0.004, 0.012)
 

@@ -16,7 +16,7 @@ settling against the thesis (5 ms, 0.27–0.3 s).
    Also the whole loop iteration in real time with the simulated cell in the *same* process (KVP
    and RSI sims, UDP DAQ: their threads compete for the GIL, so this is a pessimistic figure).
 2. **Detection delay and settling** — closed-loop runs on a virtual clock (``--seeds`` seeds;
-   definitions in :mod:`planner.supervise_metrics`) for wavelets db2, db4 (default) and db8.
+   definitions in :mod:`planner.supervisor.metrics`) for wavelets db2, db4 (default) and db8.
 
 Run from the repository root: ``python benchmarks/supervisor_latency.py [--steps N] [--seeds K]``.
 """
@@ -42,15 +42,15 @@ for _p in (str(ROOT), str(ROOT / "tests")):
 import pywt  # noqa: E402
 from _plans import make_plan  # noqa: E402
 
-from planner.cli_supervise import simulated_sigma  # noqa: E402
-from planner.detector import BandMonitor  # noqa: E402
+from planner.cli.supervise import simulated_sigma  # noqa: E402
+from planner.supervisor.detector import BandMonitor  # noqa: E402
 from planner.plan_file import load_plan  # noqa: E402
-from planner.sim_cell import SimCell  # noqa: E402
-from planner.simcut import CutScenario, SimulatedCut  # noqa: E402
-from planner.supervise_loop import VirtualClock, run_loop  # noqa: E402
-from planner.supervise_metrics import episode_metrics  # noqa: E402
+from planner.supervisor.sim_cell import SimCell  # noqa: E402
+from planner.supervisor.sim_cut import CutScenario, SimulatedCut  # noqa: E402
+from planner.supervisor.loop import VirtualClock, run_loop  # noqa: E402
+from planner.supervisor.metrics import episode_metrics  # noqa: E402
 from planner.supervisor import Supervisor, SupervisorConfig  # noqa: E402
-from robot_io.robot_link import LinkStats, LinkStatus  # noqa: E402
+from robot_io.links.base import LinkStats, LinkStatus  # noqa: E402
 
 FS = 10_000.0
 CYCLE_S = 0.004

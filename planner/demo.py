@@ -47,7 +47,7 @@ def run_demo_job(out: Path) -> DemoResult:
     from planner.export import export_plan
     from planner.job import load_job
     from planner.plan import plan_prepared, write_plan_outputs
-    from planner.plots import plot_path_kinematics
+    from planner.report.plots import plot_path_kinematics
     from planner.prepare import inspect_job, prepare
     from planner.report import ReportRenderError, render_screenshot
 
@@ -177,7 +177,7 @@ def supervise_demo(plan_path: Path, out: Path) -> dict[str, Any]:
     not. Writes the event log and the band/limit/override plot.
     """
     from planner.cli import build_parser
-    from planner.cli_supervise import supervise
+    from planner.cli.supervise import supervise
     from planner.plan_file import load_plan
 
     plan = load_plan(plan_path)

@@ -49,7 +49,7 @@ from robot_io.krl import (
     sanitize_identifier,
     write_krl,
 )
-from robot_io.krl_reader import circle_through
+from robot_io.krl.reader import circle_through
 
 __all__ = [
     "CIRC_AXIS_TOL_DEG",

@@ -11,7 +11,7 @@ the plan may have. With x_c = f_c / f_ref the cell feeds scaled to order one (f_
                −t_e ≤ x_{c+1} − x_c ≤ t_e,  t_e ≥ 0               (e: neighbouring cells of a run)
                |x_{c+1} − x_c| ≤ Δf_max / f_ref                   (bounded feed change, optional)
 
-where f̂_k is sample k's feed ceiling (:meth:`planner.evaluate.PathModel.ceilings`: chatter
+where f̂_k is sample k's feed ceiling (:meth:`planner.ceilings.PathModel.ceilings`: chatter
 margin, force, deflection and power, each evaluated with the full CCT model) and L_c the cell's
 length. The ℓ1 term (w = section_change_cost / (L / f_ref)) prices every feed change, so the
 optimum is piecewise constant: neighbouring cells whose feeds come out equal merge into one

@@ -7,11 +7,11 @@
     write_plan_outputs(result, "out/")             # plan.json, samples.npz, report.html, PNGs
 
 Every sample of the path gets a kind (cut / air / rapid, :mod:`planner.sections`). ``cut`` samples
-are evaluated with the full point model (:mod:`planner.evaluate`); their feed ceilings feed the
+are evaluated with the full point model (:mod:`planner.ceilings`); their feed ceilings feed the
 chosen method:
 
 * ``optimize`` — CasADi + IPOPT (:mod:`planner.optimize`), warm-started from the thesis baseline;
-* ``thesis`` — the thesis's section algorithm (:mod:`planner.thesis`);
+* ``thesis`` — the thesis's section algorithm (:mod:`planner.thesis_sections`);
 * ``constant`` — one feed for the whole cut: the lowest ceiling (the safe constant feed).
 
 ``air`` sections run at ``feed_max`` (plunges keep their programmed feed, capped), ``rapid``
@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from models.errors import CctmillError
-from planner.evaluate import CONSTRAINTS, Ceilings, Evaluation, Limits, PathModel
+from planner.ceilings import CONSTRAINTS, Ceilings, Evaluation, Limits, PathModel
 from planner.job import Job
 from planner.optimize import SolveResult, optimize_sections
 from planner.partition import cut_time_bound, fastest_splits
@@ -44,9 +44,9 @@ from planner.sections import (
     split_by_length,
     step_lengths,
 )
-from planner.thesis import thesis_sections
+from planner.thesis_sections import thesis_sections
 from planner.timing import Timing, time_path
-from robot_io.krl_reader import matrices_to_abc
+from robot_io.krl.reader import matrices_to_abc
 
 __all__ = [
     "CHARACTERISTIC_FEEDS",

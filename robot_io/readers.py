@@ -65,7 +65,7 @@ def read_toolpath(path: str | os.PathLike, strict: bool = True, format: str | No
 
         return read_apt(str(p), strict=strict, **options)
     if fmt == "krl":
-        from robot_io.krl_reader import read_krl
+        from robot_io.krl.reader import read_krl
 
         return read_krl(str(p), strict=strict, **options)
     raise ToolpathError(str(p), 0, 0, f"unknown format {fmt!r}; use one of {', '.join(FORMATS)}")

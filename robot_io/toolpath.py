@@ -3,7 +3,7 @@
 A :class:`Toolpath` is what a CAM program *means* on the machine that would run it: absolute end
 points in the program's workpiece frame (SI metres), arcs with their centre and plane normal, the tool
 axis where the program gives one, the feed the machine would use, and for every move the file, line
-and column it came from. Readers (``robot_io.gcode``, ``robot_io.apt``, ``robot_io.krl_reader``)
+and column it came from. Readers (``robot_io.gcode``, ``robot_io.apt``, ``robot_io.krl.reader``)
 resolve everything modal (units, absolute/incremental, planes, feed modes) so that nothing downstream
 has to know which dialect the file spoke.
 

@@ -12,7 +12,7 @@ import pytest
 import pywt
 
 from models.errors import InputError
-from planner.detector import (
+from planner.supervisor.detector import (
     BandMonitor,
     Detector,
     control_limit,

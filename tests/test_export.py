@@ -2,8 +2,8 @@
 
 Plans are synthetic (written with planner.plan_file.write_plan, obeying its contract: sections
 partition the samples, arc samples lie on their arc) plus the bundled demo job planned by
-planner.plan.plan_job. Every export is linted (robot_io.krl_lint) and read back with
-robot_io.krl_reader: each move target within 0.001 mm / 0.001°, every plan sample on the read-back
+planner.plan.plan_job. Every export is linted (robot_io.krl.lint) and read back with
+robot_io.krl.reader: each move target within 0.001 mm / 0.001°, every plan sample on the read-back
 path within 0.001 mm, every section feed exactly the .dat value (and the plan's feed rounded down
 to 1e-9 m/s).
 """
@@ -29,8 +29,8 @@ from planner.export import (
 )
 from planner.plan_file import KINDS, SAMPLE_ARRAYS, load_plan, write_plan
 from robot_io.krl import KrlError
-from robot_io.krl_lint import lint_krl
-from robot_io.krl_reader import abc_to_matrix, read_krl
+from robot_io.krl.lint import lint_krl
+from robot_io.krl.reader import abc_to_matrix, read_krl
 from robot_io.toolpath import MoveKind, arc_geometry
 
 SEED = 20240611

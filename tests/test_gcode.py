@@ -565,7 +565,7 @@ def _same(a, b) -> bool:
 
 def _read_both_ways(text: str, strict: bool, **kw):
     """(bulk, interpreter-only) outcomes: a Toolpath or the ToolpathError message."""
-    from robot_io._gcode_interp import run_program
+    from robot_io.gcode._interp import run_program
     from robot_io.gcode import GcodeOptions
 
     out = []
@@ -597,7 +597,7 @@ def _assert_same_reading(fast, ref) -> None:
 @pytest.fixture
 def bulk_lines(monkeypatch: pytest.MonkeyPatch) -> dict[str, int]:
     """Counts the lines the bulk path executes (``["lines"]``) and the reads that used it."""
-    from robot_io import _gcode_interp
+    from robot_io.gcode import _interp as _gcode_interp
 
     count = {"lines": 0, "calls": 0}
     real = _gcode_interp.execute_plain

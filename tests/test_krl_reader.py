@@ -1,4 +1,4 @@
-"""Tests of the KUKA KRL reader (robot_io.krl_reader).
+"""Tests of the KUKA KRL reader (robot_io.krl.reader).
 
 The fixtures in ``tests/data/krl`` are hand-written for these tests (no third-party program text):
 ``plain_inline.src`` (inline literals, INI fold, $BASE/$TOOL literals, BCO and joint PTPs, a CIRC, a
@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from models.errors import InputError
-from robot_io.krl_reader import (
+from robot_io.krl.reader import (
     KrlReader,
     abc_to_matrix,
     matrices_to_abc,

@@ -1,8 +1,8 @@
-"""Tests of the KUKA KRL writer (robot_io.krl) and the KRL lint (robot_io.krl_lint).
+"""Tests of the KUKA KRL writer (robot_io.krl) and the KRL lint (robot_io.krl.lint).
 
 Every program the writer produces here goes through the lint (our own checker of KUKA_IO.md §1:
 ASCII, CRLF, identifiers, DEF/END and folds, $VEL.CP decimals and range, page sizes, no page break
-before a CIRC, .src/.dat pairs, declared variables) and is read back with robot_io.krl_reader:
+before a CIRC, .src/.dat pairs, declared variables) and is read back with robot_io.krl.reader:
 poses within 0.001 mm / 0.001°, feeds exactly. The lint is itself tested on broken programs, so it
 can fail.
 """
@@ -30,8 +30,8 @@ from robot_io.krl import (
     sanitize_identifier,
     write_krl,
 )
-from robot_io.krl_lint import lint_krl
-from robot_io.krl_reader import abc_to_matrix, read_krl
+from robot_io.krl.lint import lint_krl
+from robot_io.krl.reader import abc_to_matrix, read_krl
 
 SEED = 20240611
 HOME = (0.0, -90.0, 90.0, 0.0, 45.0, 0.0)

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from _threads import no_leaked_threads, wait_for  # noqa: F401  (autouse fixture)
 
-from robot_io.kvp import (
+from robot_io.links.kvp import (
     FN_READ,
     FN_WRITE,
     KvpClient,
@@ -27,8 +27,8 @@ from robot_io.kvp import (
     parse_request,
     read_reply,
 )
-from robot_io.kvp_sim import KvpSimServer
-from robot_io.robot_link import LinkError, ProtocolError, RobotLink
+from robot_io.links.kvp_sim import KvpSimServer
+from robot_io.links.base import LinkError, ProtocolError, RobotLink
 
 py_openshowvar = pytest.importorskip("py_openshowvar")
 
@@ -181,7 +181,7 @@ def test_sim_server_override_drives_the_path_speed():
 
 
 def test_simulated_path_speed_is_a_first_order_lag_in_closed_form():
-    from robot_io._sim_speed import SimulatedPathSpeed
+    from robot_io.links._sim_peer import SimulatedPathSpeed
 
     now = [0.0]
     path = SimulatedPathSpeed(programmed_speed=2e-3, tau=0.05, clock=lambda: now[0])
@@ -355,7 +355,7 @@ def test_idle_client_notices_a_lost_server_before_its_next_poll():
 
 
 def test_client_backs_off_exponentially_and_bounded(monkeypatch):
-    import robot_io.kvp as kvp
+    import robot_io.links.kvp as kvp
 
     attempts: list[float] = []
 

@@ -16,7 +16,7 @@ import pytest
 
 from planner.check import check_result
 from planner.cli import main
-from planner.evaluate import CONSTRAINTS
+from planner.ceilings import CONSTRAINTS
 from planner.job import parse_job
 from planner.partition import fastest_split, split_time
 from planner.plan import PlanInfeasibleError, plan_prepared, write_plan_outputs

@@ -18,7 +18,7 @@ except ImportError:  # pragma: no cover - depends on how pytest imports tests/
     from tests.conftest import mutate
 from _threads import no_leaked_threads, wait_for  # noqa: F401  (autouse fixture)
 
-from robot_io.kvp import (
+from robot_io.links.kvp import (
     FN_READ,
     FN_WRITE,
     MAX_BODY_BYTES,
@@ -31,10 +31,10 @@ from robot_io.kvp import (
     parse_request,
     read_reply,
 )
-from robot_io.kvp_sim import KvpSimServer
-from robot_io.robot_link import ProtocolError
-from robot_io.rsi import MAX_PACKET_BYTES, RsiServer, build_rob, build_sen, parse_rob, parse_sen
-from robot_io.rsi_sim import RsiSimController
+from robot_io.links.kvp_sim import KvpSimServer
+from robot_io.links.base import ProtocolError
+from robot_io.links.rsi import MAX_PACKET_BYTES, RsiServer, build_rob, build_sen, parse_rob, parse_sen
+from robot_io.links.rsi_sim import RsiSimController
 
 WAIT_S = 5.0
 XML_ALPHABET = b'<>/="&;![]- ?abcdefgKLMNOPRSTXYZ0123456789.\x00\xff'

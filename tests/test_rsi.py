@@ -11,8 +11,8 @@ import time
 import pytest
 from _threads import no_leaked_threads, wait_for  # noqa: F401  (autouse fixture)
 
-from robot_io.robot_link import LinkError, ProtocolError, RobotLink
-from robot_io.rsi import (
+from robot_io.links.base import LinkError, ProtocolError, RobotLink
+from robot_io.links.rsi import (
     IPOC_MAX,
     RobTelegram,
     RsiServer,
@@ -21,7 +21,7 @@ from robot_io.rsi import (
     parse_rob,
     parse_sen,
 )
-from robot_io.rsi_sim import RsiSimController
+from robot_io.links.rsi_sim import RsiSimController
 
 WAIT_S = 3.0
 
@@ -306,7 +306,7 @@ def test_cli_robot_sim_rsi_reports_rsibad(capsys):
 # -- the server in its own process -------------------------------------------------------------------------
 
 def test_process_server_serves_the_controller_through_shared_memory():
-    from robot_io.rsi_process import SYNC_PERIOD_S, RsiProcessServer
+    from robot_io.links.rsi_process import SYNC_PERIOD_S, RsiProcessServer
 
     with RsiProcessServer() as srv:
         assert isinstance(srv, RobotLink)

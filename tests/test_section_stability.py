@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from _plans import characteristic
 
-from planner.section_stability import (
+from planner.supervisor.characteristic import (
     FLAT_MARGIN_REL,
     Characteristic,
     characteristic_of,

@@ -9,9 +9,9 @@ import time
 import numpy as np
 import pytest
 
-from robot_io.signal_replay import ReplaySource, SignalFileError, load_signal
-from robot_io.signal_source import SignalSource
-from robot_io.signal_udp import (
+from robot_io.signals.replay import ReplaySource, SignalFileError, load_signal
+from robot_io.signals.base import SignalSource
+from robot_io.signals.udp import (
     HEADER,
     MAGIC,
     MAX_SAMPLES,

@@ -75,7 +75,7 @@ def test_simulated_signals_tune_and_trip_the_wavelet_detector():
     boundary) trips it within 1.5 s. (σ belongs to its cut: a deeper stable cut has a larger band.)"""
     from models import ModelParameters, load_robot
     from models.dynamics import pose_structure
-    from planner.detector import Detector, select_level
+    from planner.supervisor.detector import Detector, select_level
 
     robot = load_robot()
     params = ModelParameters(joint_stiffness=robot.data.joint_stiffness,

@@ -1,7 +1,7 @@
 """End to end over loopback with real sockets (issue 6, "must show" 1).
 
 Each scenario runs the supervisor loop in real time against the simulated cell of
-:mod:`planner.sim_cell`: the simulated cut's samples travel as UDP datagrams to the supervisor's
+:mod:`planner.supervisor.sim_cell`: the simulated cut's samples travel as UDP datagrams to the supervisor's
 source, the override travels to a simulated controller over KukaVarProxy (TCP) or RSI (UDP XML),
 and the cut's feed follows the override *that controller applies*:
 
@@ -20,16 +20,16 @@ import pytest
 from _plans import make_plan
 
 from planner.cli import main
-from planner.cli_supervise import simulated_sigma
-from planner.event_log import EventLog
+from planner.cli.supervise import simulated_sigma
+from planner.supervisor.event_log import EventLog
 from planner.plan_file import load_plan
-from planner.sim_cell import SimCell
-from planner.simcut import CutScenario
-from planner.supervise_loop import run_loop
-from planner.supervise_metrics import episode_metrics
+from planner.supervisor.sim_cell import SimCell
+from planner.supervisor.sim_cut import CutScenario
+from planner.supervisor.loop import run_loop
+from planner.supervisor.metrics import episode_metrics
 from planner.supervisor import Supervisor, SupervisorConfig
-from robot_io.kvp_sim import KvpSimServer
-from robot_io.signal_udp import UdpSignalSender
+from robot_io.links.kvp_sim import KvpSimServer
+from robot_io.signals.udp import UdpSignalSender
 
 FS = 10_000.0
 CUT = [{"length_m": 0.5, "feed_mm_s": 8.0}]

@@ -12,7 +12,7 @@ import pytest
 
 from planner.optimize import PlanSolverError, optimize_sections
 from planner.sections import AIR, CUT, RAPID, kind_runs, sample_kinds, split_by_length, step_lengths
-from planner.thesis import thesis_sections, wrap_angle
+from planner.thesis_sections import thesis_sections, wrap_angle
 from planner.timing import shape_feed, time_path, transition
 
 ACC = 1.0    # path acceleration [m/s²]

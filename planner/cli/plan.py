@@ -1,0 +1,113 @@
+"""``cctmill plan JOB.toml -o OUTDIR [--method ...] [--safety-factor 1.1] [--demo] [--json]``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from importlib import resources
+from pathlib import Path
+
+from models.errors import InputError
+from planner.plan import METHODS, PlanResult
+
+__all__ = ["DEMO_JOB", "register", "run_plan", "section_table"]
+
+#: The bundled demo job (package data).
+DEMO_JOB = "data/demo/demo_job.toml"
+
+
+def demo_job_path() -> Path:
+    """Path of the bundled demo job file."""
+    return Path(str(resources.files("planner").joinpath(DEMO_JOB)))
+
+
+def section_table(res: PlanResult, limit: int = 40) -> str:
+    """The sections as a readable table (the first ``limit`` rows, then a count)."""
+    head = (f"{'#':>4} {'kind':5} {'s [m]':>15} {'feed mm/s':>9} {'binds':11} {'F max N':>8} "
+            f"{'|δ| mm':>7} {'margin N/m':>10} {'γ deg':>7} {'t [s]':>7}  lines")
+    out = [head, "-" * len(head)]
+
+    def f(v, spec):
+        return "—" if v is None else format(v, spec)
+
+    for r in res.section_rows[:limit]:
+        out.append(f"{r['index']:>4} {r['kind']:5} {r['s_start_m']:7.3f}-{r['s_end_m']:<7.3f} "
+                   f"{r['feed_mm_s']:9.3f} {r['binding']:11} {f(r['force_max_N'], '8.1f'):>8} "
+                   f"{f(r['deflection_max_mm'], '7.3f'):>7} {f(r['margin_N_per_m'], '10.3g'):>10} "
+                   f"{f(r['gamma_deg'], '7.2f'):>7} {r['time_s']:7.2f}  "
+                   f"{r['line_start']}-{r['line_end']}")
+    if len(res.section_rows) > limit:
+        out.append(f"... {len(res.section_rows) - limit} more sections (plan.json, report.html)")
+    return "\n".join(out)
+
+
+def run_plan(job_path: Path, out: Path, method: str | None, safety_factor: float | None,
+             progress: bool = True) -> tuple[PlanResult, dict]:
+    """Plan a job file and write its outputs; the library call behind ``cctmill plan``."""
+    from planner.job import load_job
+    from planner.plan import plan_job, write_plan_outputs
+
+    job = load_job(job_path)
+    res = plan_job(job, method=method, safety_factor=safety_factor, progress=progress)
+    written = write_plan_outputs(res, out)
+    return res, written
+
+
+def _cmd_plan(args: argparse.Namespace) -> int:
+    if args.demo == (args.job is not None):
+        raise InputError("plan", "give a JOB.toml or --demo (not both)")
+    job = demo_job_path() if args.demo else Path(args.job)
+    out = Path(args.output)
+    if args.safety_factor is not None and not args.safety_factor >= 1.0:
+        raise InputError("--safety-factor", "must be >= 1 (f_real = f_max / safety factor)")
+    res, written = run_plan(job, out, args.method, args.safety_factor, progress=not args.json)
+    if args.krl:
+        from planner.export import export_plan
+
+        written["krl"] = export_plan(
+            written["plan"], out, name=args.name, controller=args.controller,
+            compensate=args.compensate_deflection, override_hook=args.override_hook,
+            base_index=args.base_index, tool_index=args.tool_index,
+            apo_cdis_mm=args.apo_cdis_mm, advance=args.advance)
+    if args.json:
+        doc = json.loads(written["plan"].read_text(encoding="utf-8"))
+        doc.pop("sections", None)
+        doc["written"] = {k: [str(p) for p in v] if isinstance(v, list) else str(v)
+                          for k, v in written.items()}
+        print(json.dumps(doc, indent=2))
+        return 0
+    s = res.section_rows
+    print(section_table(res))
+    print(f"\n{res.method}: cycle {res.cycle_time:.2f} s (process {res.process_time:.2f} s), "
+          f"{len(s)} sections; solver {res.solver.status} ({res.solver.iterations} iterations)")
+    if res.cut_time > 0:
+        print(f"cutting {res.cut_time:.2f} s; no plan with sections >= "
+              f"{res.limits.section_length_min * 1e3:g} mm can cut faster than "
+              f"{res.cut_time_bound:.2f} s under these limits "
+              f"({100 * (res.cut_time / res.cut_time_bound - 1):.1f} % above it)")
+    print("wrote:")
+    for k, v in written.items():
+        for p in v if isinstance(v, list) else [v]:
+            print(f"  {k:22} {p}")
+    return 0
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add ``cctmill plan``."""
+    p = sub.add_parser("plan", help="choose sections and feeds for a job and time it "
+                                    "(plan.json, samples.npz, report.html)")
+    p.add_argument("job", nargs="?", help="job file (.toml)")
+    p.add_argument("--demo", action="store_true", help="plan the bundled demo job")
+    p.add_argument("-o", "--output", default="out", help="output folder (default out/)")
+    p.add_argument("--method", choices=METHODS, default=None,
+                   help="optimize (CasADi + IPOPT, default), thesis (SPEC §8 section algorithm) "
+                        "or constant (the safe constant feed)")
+    p.add_argument("--safety-factor", type=float, default=None,
+                   help="thesis method: f_real = f_max / safety factor (default from the job, 1.1)")
+    p.add_argument("--krl", action="store_true", help="also write the KUKA KRL program "
+                                                      "(the KRL flags below, as cctmill export)")
+    from planner.cli.export import add_krl_flags
+
+    add_krl_flags(p, with_output=False)
+    p.add_argument("--json", action="store_true", help="print the plan summary as JSON")
+    p.set_defaults(run=_cmd_plan)

@@ -1,0 +1,97 @@
+"""Detection delay and closed-loop settling of a supervised simulated cut (the thesis's 5 ms and
+0.27–0.3 s).
+
+Definitions (times on the simulation's clock, i.e. the signal's time stamps):
+
+- *visible*: the first moment after the chatter onset at which the true chatter amplitude a(t)
+  times the band filter's gain at f_c reaches the control limit — when an ideal detector without
+  delay would alarm;
+- *detection delay* = time stamp of the first alarming band value − visible (the band filter's
+  group delay plus the step quantisation; the computation itself is the step latency);
+- *onset to alarm* = first alarm − the onset of the model error (includes the growth of chatter
+  from its seed, which no detector can shorten);
+- *settling time* = from the first alarm until the true chatter amplitude falls back under the
+  visibility level a_vis = UCL / gain for good within the episode (the closed loop's answer);
+- *quiet time* = from the first alarm until the supervisor declares the band quiet (its episode
+  end minus the ``quiet_s`` wait).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.supervisor.sim_cut import CutTruth
+from planner.supervisor import Supervisor
+
+__all__ = ["EpisodeMetrics", "band_gain", "episode_metrics"]
+
+
+@dataclass(frozen=True)
+class EpisodeMetrics:
+    """Timing of one chatter episode [s] (None when it did not happen in the record)."""
+
+    alarm_s: float
+    visible_s: float | None
+    detection_delay_s: float | None
+    onset_to_alarm_s: float | None
+    settling_s: float | None
+    quiet_s: float | None
+    override_start: float
+    override_min: float
+    direction: int
+
+
+def band_gain(sup: Supervisor, f_hz: float) -> float:
+    """|G(f)| of the supervisor's band filter: band value per unit sinusoid amplitude at f [Hz]."""
+    g = sup.detector.monitor.filter
+    w = 2 * math.pi * f_hz / sup.fs_hz
+    return float(abs(np.sum(g * np.exp(-1j * w * np.arange(g.size)))))
+
+
+def episode_metrics(sup: Supervisor, truth: CutTruth, chatter_hz: float, onset_s: float | None,
+                    clock_offset_s: float) -> list[EpisodeMetrics]:
+    """Metrics of every episode of ``sup`` against the simulated truth.
+
+    Args:
+        sup: the supervisor after the run.
+        truth: the simulated cut's record.
+        chatter_hz: the simulated chatter frequency [Hz].
+        onset_s: simulation time of the model error's onset [s], or None.
+        clock_offset_s: supervisor clock − simulation time [s] (the cut's start on that clock).
+    """
+    tr = truth.arrays()
+    if tr["t_s"].size == 0 or sup.detector.sigma is None:
+        return []
+    a_vis = sup.detector.ucl / band_gain(sup, chatter_hz)
+    t, a = tr["t_s"], tr["chatter_N"]
+    out: list[EpisodeMetrics] = []
+    for k, ep in enumerate(sup.episodes):
+        alarm = ep.signal_start_s if ep.signal_start_s is not None else ep.start_s - clock_offset_s
+        prev_end = -math.inf
+        if k:
+            prev = sup.episodes[k - 1]
+            prev_end = prev.end_s - clock_offset_s if prev.end_s is not None else alarm
+        seen = np.flatnonzero((t > prev_end) & (t <= alarm) & (a >= a_vis))
+        visible = float(t[seen[0]]) if seen.size else None
+        end = ep.end_s - clock_offset_s if ep.end_s is not None else None
+        window = (t >= alarm) & (t <= (end if end is not None else t[-1]))
+        settling = None
+        idx = np.flatnonzero(window)
+        if idx.size:
+            above = np.flatnonzero(a[idx] >= a_vis)
+            if above.size == 0:
+                settling = 0.0
+            elif above[-1] + 1 < idx.size:
+                settling = float(t[idx[above[-1] + 1]] - alarm)
+        out.append(EpisodeMetrics(
+            alarm_s=float(alarm), visible_s=visible,
+            detection_delay_s=None if visible is None else float(alarm - visible),
+            onset_to_alarm_s=(None if onset_s is None or k else float(alarm - onset_s)),
+            settling_s=settling,
+            quiet_s=None if end is None else float(end - sup.cfg.quiet_s - alarm),
+            override_start=ep.override_start, override_min=ep.override_min,
+            direction=ep.direction))
+    return out

@@ -1,0 +1,197 @@
+"""The RSI server in its own process, out of reach of the caller's GIL.
+
+A CPython thread waits for the GIL for up to ``sys.getswitchinterval()`` (5 ms by default) while
+another thread of its process computes; an RSI reply is due within 4 ms. :class:`RsiProcessServer`
+runs :class:`~robot_io.links.rsi.RsiServer` in a child process (``spawn``) and talks to it through shared
+memory: ``set_override`` writes one shared integer the server reads for every reply, and the child
+copies its counters and the controller's state into a shared block every
+:data:`SYNC_PERIOD_S`. The interface is :class:`~robot_io.links.base.RobotLink`, as for the
+in-process server; :attr:`stats`, :meth:`read_override` and :attr:`connected` lag the server by at
+most one sync period. ``benchmarks/link_latency.py`` measures both against a CPU-bound thread.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing as mp
+import threading
+import time
+from typing import Any
+
+from robot_io.links.base import LinkError, LinkStats, LinkStatus, override_to_int
+from robot_io.links.rsi import RobTelegram, RsiServer
+
+__all__ = ["SYNC_PERIOD_S", "RsiProcessServer"]
+
+#: How often the child copies the server's counters into shared memory [s].
+SYNC_PERIOD_S = 0.005
+#: How long the child may take to start (spawn re-imports the package) [s].
+_START_TIMEOUT_S = 60.0
+_FIELDS = ("sent", "replies", "malformed", "late", "timeouts", "reconnects", "short_first_dropped",
+           "missed_cycles", "last_rx", "up", "ov_pro")
+_IDX = {name: i for i, name in enumerate(_FIELDS)}
+_ERR_BYTES = 256
+
+
+class _SharedOverrideServer(RsiServer):
+    """RsiServer whose override lives in a shared integer (-1: none set yet)."""
+
+    def __init__(self, cell: Any, **kwargs: Any) -> None:
+        self._cell = cell  # before super().__init__ starts the server thread
+        super().__init__(**kwargs)
+
+    def _wanted_override(self) -> int | None:
+        v = int(self._cell.value)
+        return None if v < 0 else v
+
+
+def _child(kwargs: dict, cell: Any, block: Any, err: Any, pipe: Any) -> None:
+    """Child process: serve until the parent says stop or goes away."""
+    try:
+        srv = _SharedOverrideServer(cell, **kwargs)
+    except LinkError as e:
+        pipe.send(("error", str(e)))
+        return
+    pipe.send(("address", srv.address))
+    try:
+        while True:
+            st = srv.stats
+            last = srv.last_telegram
+            values = (st.sent, st.replies, st.malformed, st.late, st.timeouts, st.reconnects,
+                      srv.short_first_dropped, srv.missed_cycles, srv.last_receive_time, float(srv.connected),
+                      math.nan if last is None or last.ov_pro is None else last.ov_pro)
+            for i, v in enumerate(values):
+                block[i] = v
+            msg = st.last_error.encode("ascii", "replace")[:_ERR_BYTES - 1]
+            err.value = msg
+            if pipe.poll(SYNC_PERIOD_S):
+                cmd = pipe.recv()
+                if cmd == "stop":
+                    break
+                if cmd == "times":
+                    pipe.send(srv.reply_times())
+                elif cmd == "telegram":
+                    pipe.send(srv.last_telegram)
+    except (EOFError, OSError):  # the parent went away
+        pass
+    finally:
+        srv.close()
+
+
+class RsiProcessServer:
+    """:class:`~robot_io.links.rsi.RsiServer` in a child process (implements
+    :class:`~robot_io.links.base.RobotLink`).
+
+    Args:
+        bind_host, port, and any keyword of :class:`~robot_io.links.rsi.RsiServer` (``sentype``,
+        ``override_tag``, ``reply_budget_s``, ``link_timeout_s``, ...).
+
+    Starting takes about a second (the child imports the package); construction raises
+    :class:`~robot_io.links.base.LinkError` when the port cannot be bound or the child does not start.
+    """
+
+    def __init__(self, bind_host: str = "127.0.0.1", port: int = 0, **kwargs: Any) -> None:
+        ctx = mp.get_context("spawn")
+        self.link_timeout_s = float(kwargs.get("link_timeout_s", 0.25))
+        self._cell = ctx.RawValue("i", -1)
+        self._block = ctx.RawArray("d", len(_FIELDS))
+        self._block[_IDX["ov_pro"]] = math.nan
+        self._block[_IDX["last_rx"]] = -math.inf
+        self._err = ctx.RawArray("c", _ERR_BYTES)
+        self._pipe, child_end = ctx.Pipe()
+        self._pipe_lock = threading.Lock()
+        kwargs.update(bind_host=bind_host, port=port)
+        self._proc = ctx.Process(target=_child, args=(kwargs, self._cell, self._block, self._err, child_end),
+                                 name=f"rsi-server-{port}", daemon=True)
+        self._proc.start()
+        child_end.close()
+        if not self._pipe.poll(_START_TIMEOUT_S):
+            self._kill()
+            raise LinkError("rsi", f"RSI server process did not start within {_START_TIMEOUT_S:.0f} s")
+        kind, value = self._pipe.recv()
+        if kind == "error":
+            self._proc.join(5.0)
+            raise LinkError("rsi", value.removeprefix("rsi: "))
+        self.address: tuple[str, int] = tuple(value)  # type: ignore[assignment]
+        self._closed = False
+
+    def _get(self, name: str) -> float:
+        return self._block[_IDX[name]]
+
+    # -- RobotLink -------------------------------------------------------------------------------
+    def set_override(self, percent: float) -> LinkStatus:
+        value = override_to_int(percent)
+        if value is None:
+            return LinkStatus(False, f"override {percent!r} is not a finite number; nothing sent")
+        if self._closed:
+            return LinkStatus(False, "link closed")
+        self._cell.value = value
+        if self.connected:
+            return LinkStatus(True, "sent in next reply", value)
+        return LinkStatus(False, f"no <Rob> from the controller for {self.link_timeout_s} s; value kept "
+                                 "for the next reply", value)
+
+    def read_override(self) -> float | None:
+        v = self._get("ov_pro")
+        return None if math.isnan(v) else v
+
+    @property
+    def stats(self) -> LinkStats:
+        b = self._block
+        err = bytes(self._err.value).decode("ascii", "replace")
+        return LinkStats(sent=int(b[_IDX["sent"]]), replies=int(b[_IDX["replies"]]),
+                         malformed=int(b[_IDX["malformed"]]), late=int(b[_IDX["late"]]),
+                         timeouts=int(b[_IDX["timeouts"]]), reconnects=int(b[_IDX["reconnects"]]),
+                         last_error=err)
+
+    @property
+    def connected(self) -> bool:
+        return bool(self._get("up")) and time.monotonic() - self._get("last_rx") < self.link_timeout_s
+
+    def close(self) -> None:
+        if getattr(self, "_closed", True):
+            return
+        self._closed = True
+        try:
+            with self._pipe_lock:
+                self._pipe.send("stop")
+        except OSError:
+            pass
+        self._proc.join(5.0)
+        self._kill()
+        self._pipe.close()
+
+    def __enter__(self) -> RsiProcessServer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- extras ------------------------------------------------------------------------------------
+    @property
+    def short_first_dropped(self) -> int:
+        return int(self._get("short_first_dropped"))
+
+    @property
+    def missed_cycles(self) -> int:
+        return int(self._get("missed_cycles"))
+
+    def _ask(self, cmd: str) -> Any:
+        with self._pipe_lock:
+            self._pipe.send(cmd)
+            if not self._pipe.poll(5.0):
+                raise LinkError("rsi", "RSI server process does not answer")
+            return self._pipe.recv()
+
+    def reply_times(self) -> list[float]:
+        """The server's receive-to-reply times [s] (see :meth:`robot_io.links.rsi.RsiServer.reply_times`)."""
+        return self._ask("times")
+
+    @property
+    def last_telegram(self) -> RobTelegram | None:
+        return self._ask("telegram")
+
+    def _kill(self) -> None:
+        if self._proc.is_alive():
+            self._proc.terminate()
+            self._proc.join(5.0)
