@@ -118,18 +118,19 @@ def long_job(n_moves: int = 12_000) -> tuple[list[KrlSection], list[KrlMove]]:
 
 def main() -> list[dict]:
     from planner.job import load_job
-    from planner.plan import plan_job, write_plan_outputs
+    from planner.outputs import write_plan_outputs
+    from planner.plan import plan_job
 
     rows = []
     job = load_job(str(resources.files("planner").joinpath("data/demo/demo_job.toml")))
     res = plan_job(job)
     with tempfile.TemporaryDirectory() as d:
-        plan = write_plan_outputs(res, d, report=False)["plan"]
+        plan = write_plan_outputs(res, d, report=False).plan
         for controller, hook, comp in (("krc4", "rsi", False), ("krc2", "kvp", False),
                                        ("krc4", "none", True)):
             prog = plan_to_krl(plan, controller=controller, override_hook=hook, compensate=comp)
-            smp = load_plan(plan).samples
-            p = smp["position_wp_m"] - (np.nan_to_num(smp["deflection_wp_m"]) if comp else 0.0)
+            smp = plan.samples
+            p = smp.position_wp - (np.nan_to_num(smp.deflection_wp) if comp else 0.0)
             label = "demo job" + (" (compensated)" if comp else "") + f", hook {hook}"
             rows.append(measure(label, prog.spec, prog.sections, prog.moves, prog.notes,
                                 p * 1e3, prog.sample_of_move))

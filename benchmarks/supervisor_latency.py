@@ -42,7 +42,7 @@ for _p in (str(ROOT), str(ROOT / "tests")):
 import pywt  # noqa: E402
 from _plans import make_plan  # noqa: E402
 
-from planner.cli.supervise import simulated_sigma  # noqa: E402
+from planner.supervisor.session import simulated_sigma  # noqa: E402
 from planner.supervisor.detector import BandMonitor  # noqa: E402
 from planner.plan_file import load_plan  # noqa: E402
 from planner.supervisor.sim_cell import SimCell  # noqa: E402

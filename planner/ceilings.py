@@ -31,6 +31,7 @@ from models.cutting import MILLING_MODES, load_material
 from models.errors import InputError
 from planner._progress import bar
 from planner.job import Job
+from planner.limits import Limits
 from planner.prepare import Prepared
 
 __all__ = [
@@ -64,75 +65,17 @@ _OUTPUTS = ("force_o", "force_base", "deflection", "margin", "stable", "gamma", 
             "power", "omega2")
 
 
-@dataclass(frozen=True)
-class Limits:
-    """What no sample may exceed, SI (from the job's ``[limits]`` and ``[spindle]``).
-
-    Attributes:
-        force_max: resultant average cutting force [N].
-        deflection_tol: ‖δ‖ at the TCP [m].
-        power_max: spindle power [W].
-        feed_min, feed_max: feed bounds [m/s].
-        feed_change_max: largest feed change between neighbouring cut sections [m/s] (None: free).
-        margin_min: required chatter stability margin [N/m] (eigen criterion).
-        section_length_min: shortest section [m].
-        path_acc_max: path acceleration of feed transitions [m/s²].
-        path_jerk_max: path jerk of feed transitions [m/s³].
-        rapid_speed: path-speed bound on rapid moves [m/s].
-    """
-
-    force_max: float
-    deflection_tol: float
-    power_max: float
-    feed_min: float
-    feed_max: float
-    feed_change_max: float | None
-    margin_min: float
-    section_length_min: float
-    path_acc_max: float
-    path_jerk_max: float
-    rapid_speed: float
-
-    @classmethod
-    def from_job(cls, job: Job) -> Limits:
-        lim = job.limits
-        return cls(force_max=lim.force_max_n, deflection_tol=lim.deflection_tol_mm * 1e-3,
-                   power_max=job.spindle.power_max_kw * 1e3, feed_min=lim.feed_min_mm_s * 1e-3,
-                   feed_max=lim.feed_max_mm_s * 1e-3,
-                   feed_change_max=(None if lim.feed_change_max_mm_s is None
-                                    else lim.feed_change_max_mm_s * 1e-3),
-                   margin_min=lim.margin_min_n_per_m,
-                   section_length_min=lim.section_length_min_mm * 1e-3,
-                   path_acc_max=lim.path_acc_max_m_s2, path_jerk_max=lim.path_jerk_max_m_s3,
-                   rapid_speed=lim.rapid_mm_s * 1e-3)
-
-    def as_json(self, safety_factor: float) -> dict:
-        """The ``constraints`` object of plan.json (units in the names)."""
-        return {
-            "force_max_N": self.force_max, "deflection_tol_mm": self.deflection_tol * 1e3,
-            "power_max_kW": self.power_max * 1e-3, "feed_min_mm_s": self.feed_min * 1e3,
-            "feed_max_mm_s": self.feed_max * 1e3,
-            "feed_change_max_mm_s": (None if self.feed_change_max is None
-                                     else self.feed_change_max * 1e3),
-            "margin_min_N_per_m": self.margin_min,
-            "section_length_min_mm": self.section_length_min * 1e3,
-            "path_acc_max_m_s2": self.path_acc_max, "path_jerk_max_m_s3": self.path_jerk_max,
-            "rapid_mm_s": self.rapid_speed * 1e3, "safety_factor": safety_factor,
-        }
-
-
 def model_parameters(job: Job, prep: Prepared) -> ModelParameters:
     """The point-model parameters a job asks for (robot data, material, calibration knobs)."""
     robot = prep.robot
     spindle = job.spindle
+    si = job.to_si()
     return ModelParameters(
         joint_stiffness=robot.data.joint_stiffness * job.cell.joint_stiffness_scale,
         coefficients=load_material(job.material).coefficients(), cct=job.model.cct,
-        process_gain=job.model.process_gain, tcp=np.asarray(job.cell.tcp_mm) * 1e-3,
-        gamma_window=tuple(np.radians(job.model.gamma_window_deg)),
+        process_gain=job.model.process_gain, tcp=si.tcp, gamma_window=si.gamma_window,
         spindle_mass=robot.data.spindle_mass if spindle.mass_kg is None else spindle.mass_kg,
-        spindle_com=(robot.data.spindle_com if spindle.com_mm is None
-                     else np.asarray(spindle.com_mm) * 1e-3))
+        spindle_com=robot.data.spindle_com if si.spindle_com is None else si.spindle_com)
 
 
 @dataclass(frozen=True)
@@ -230,9 +173,8 @@ class PathModel:
         self.index = np.flatnonzero(cutting)
         feed_dir = e.feed_dir if e.feed_dir is not None else prep.path.feed_dir
         tool = prep.tool
-        rpm = job.spindle.rpm
-        self.spindle_speed = rpm * 2.0 * np.pi / 60.0
-        self.tooth_frequency = tool.flutes * rpm / 60.0
+        self.spindle_speed = job.to_si().spindle_speed
+        self.tooth_frequency = tool.flutes * job.spindle.rpm / 60.0
         i = self.index
         m = i.size
         self.radial_dir = e.radial_dir[i]

@@ -19,7 +19,8 @@ import numpy as np
 from models.analysis import Cut
 from models.cutting import edge_forces, immersion_angles
 from models.point import PointModel
-from planner.ceilings import Limits, model_parameters
+from planner.ceilings import model_parameters
+from planner.limits import Limits
 from planner.prepare import Prepared
 from planner.sections import CUT, RAPID, kind_runs, step_lengths
 

@@ -1,12 +1,13 @@
 """A plan → KUKA KRL: the planner's samples and sections as the KRL writer's plain moves.
 
-:func:`plan_to_krl` turns a plan (``planner.plan_file``) into :mod:`robot_io.krl`'s types;
+:func:`plan_to_krl` turns a plan (:class:`planner.plan_file.Plan`, SI) into :mod:`robot_io.krl`'s types;
 :func:`export_plan` also writes the files (atomically, all or nothing). What is emitted:
 
 * the BCO run to the first sample's joint angles (``q_rad[0]``), as a joint-space PTP;
 * per plan section (in order; KRL numbers them 1, 2, … in the fold titles and feed names): its
-  feed as ``$VEL.CP`` (``feed_mm_s`` / 1000, rounded **down** to :data:`FEED_RESOLUTION_M_S` so
-  the ``.dat`` literal stays short and the feed never exceeds the plan's), then one LIN to every
+  feed as ``$VEL.CP`` [m/s], rounded **down** to :data:`FEED_RESOLUTION_M_S` (exactly, on the
+  float's decimal value) so the ``.dat`` literal stays short and the feed never exceeds the plan's;
+  then one LIN to every
   sample of the section — the first sample included, so the first LIN after the BCO PTP goes to
   where the PTP already is (a null move that fixes the Cartesian start);
 * a run of samples of one arc move inside one section (``arc`` true, same ``move``) becomes CIRC
@@ -32,6 +33,7 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass
+from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
@@ -49,7 +51,7 @@ from robot_io.krl import (
     sanitize_identifier,
     write_krl,
 )
-from robot_io.krl.reader import circle_through
+from robot_io.krl.frames import circle_through, x_axes
 
 __all__ = [
     "CIRC_AXIS_TOL_DEG",
@@ -83,9 +85,8 @@ CIRC_AXIS_TOL_DEG = 0.1
 CIRC_MIN_SWEEP_DEG = 1.0
 
 _MM = 1e3
-#: A feed within this fraction of a resolution step of a whole number of steps is that number
-#: (float noise of mm/s → m/s, e.g. 5.0 mm/s must stay 0.005 m/s, not 0.004999999).
-_FEED_SNAP = 1e-6
+#: Feed resolution steps per m/s (the integer form of :data:`FEED_RESOLUTION_M_S`).
+_STEPS_PER_M_S = 10**9
 
 
 class ExportError(CctmillError):
@@ -111,31 +112,17 @@ class KrlProgram:
     sample_of_move: tuple[int, ...]
 
 
-def _feed_m_s(feed_mm_s: Any, kind: str) -> float:
-    v = math.nan if feed_mm_s is None else float(feed_mm_s) / _MM
+def _feed_m_s(feed: float, kind: str) -> float:
+    """The section's ``$VEL.CP`` [m/s]: the planned feed rounded down to whole resolution steps,
+    exactly (on the float's own decimal value, so 0.005 stays 0.005), as the nearest float to
+    that decimal (so the ``.dat`` literal is short and exact)."""
+    v = float(feed)
     if kind == "rapid" and not (math.isfinite(v) and v > 0):
         return RAPID_FEED_M_S
     if not math.isfinite(v):
         return v             # the writer refuses it with the section's number
-    q = v / FEED_RESOLUTION_M_S
-    k = round(q) if abs(q - round(q)) < _FEED_SNAP else math.floor(q)
-    return k * FEED_RESOLUTION_M_S if k > 0 else v
-
-
-def _frame(d: dict[str, Any] | None, which: str) -> KrlFrame:
-    if not isinstance(d, dict):
-        raise ExportError(f"the plan's {which}_frame is missing; plan the job again")
-    try:
-        return KrlFrame(tuple(float(x) for x in d["xyz_mm"]),     # type: ignore[arg-type]
-                        tuple(float(x) for x in d["abc_deg"]))    # type: ignore[arg-type]
-    except (KeyError, TypeError, ValueError) as e:
-        raise ExportError(f"the plan's {which}_frame needs xyz_mm and abc_deg ({e})") from e
-
-
-def _tcp_x(abc_deg: np.ndarray) -> np.ndarray:
-    """TCP +x axes (the tool axis, SPEC §1) of KUKA A, B, C rows [deg], shape (n, 3)."""
-    a, b = np.radians(abc_deg[:, 0]), np.radians(abc_deg[:, 1])
-    return np.column_stack([np.cos(a) * np.cos(b), np.sin(a) * np.cos(b), -np.sin(b)])
+    k = math.floor(Fraction(v) * _STEPS_PER_M_S)
+    return k / _STEPS_PER_M_S if k > 0 else v
 
 
 def _arc_moves(p: np.ndarray, abc: np.ndarray, start: int,
@@ -146,7 +133,7 @@ def _arc_moves(p: np.ndarray, abc: np.ndarray, start: int,
     n = stop - start
     if n < 2:
         return None
-    x = _tcp_x(abc[start:stop + 1])
+    x = x_axes(abc[start:stop + 1])
     if np.degrees(np.arccos(np.clip(x @ x[0], -1.0, 1.0))).max() > CIRC_AXIS_TOL_DEG:
         return None
     idx = (start, start + max(1, n // 3), start + max(2, (2 * n) // 3))
@@ -204,23 +191,22 @@ def plan_to_krl(plan: Plan | str | os.PathLike, name: str | None = None,
     """
     if not isinstance(plan, Plan):
         plan = load_plan(plan)
-    data, smp = plan.data, plan.samples
-    solver = data.get("solver") or {}
-    if solver.get("success") is False:
-        raise ExportError(f"{plan.path}: the plan's solve did not converge (status "
-                          f"{solver.get('status')!r}); re-plan the job (e.g. --method thesis) — "
+    smp, where = plan.samples, plan.label
+    if plan.solver.success is False:
+        raise ExportError(f"{where}: the plan's solve did not converge (status "
+                          f"{plan.solver.status!r}); re-plan the job (e.g. --method thesis) — "
                           "an unconverged plan is never exported")
-    n = int(smp["s_m"].shape[0])
-    pos = np.asarray(smp["position_wp_m"], float).copy()
-    abc = np.asarray(smp["abc_wp_deg"], float)
-    kinds = np.asarray(smp["kind"])
+    n = len(smp)
+    pos = np.asarray(smp.position_wp, float).copy()
+    abc = np.degrees(np.asarray(smp.abc_wp, float))
+    kinds = np.asarray(smp.kind)
     notes: list[str] = []
     if compensate:
-        d = np.asarray(smp["deflection_wp_m"], float)
+        d = np.asarray(smp.deflection_wp, float)
         bad = ~np.all(np.isfinite(d), axis=1)
         cut_bad = np.flatnonzero(bad & (kinds == KINDS.index("cut")))
         if cut_bad.size:
-            raise ExportError(f"{plan.path}: no predicted deflection at cut sample "
+            raise ExportError(f"{where}: no predicted deflection at cut sample "
                               f"{int(cut_bad[0])}; export without --compensate-deflection or "
                               "re-plan")
         pos -= np.where(bad[:, None], 0.0, d)
@@ -229,44 +215,41 @@ def plan_to_krl(plan: Plan | str | os.PathLike, name: str | None = None,
                      f"deflection (mirror, SPEC 7); largest shift {dmax * _MM:.4f} mm")
     if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(abc))):
         i = int(np.flatnonzero(~np.all(np.isfinite(np.hstack([pos, abc])), axis=1))[0])
-        raise ExportError(f"{plan.path}: sample {i} has no finite pose; re-plan the job")
-    q0 = np.degrees(np.asarray(smp["q_rad"], float)[0]) if n else np.full(6, np.nan)
-    secs = data["sections"]
+        raise ExportError(f"{where}: sample {i} has no finite pose; re-plan the job")
+    q0 = np.degrees(np.asarray(smp.q, float)[0]) if n else np.full(6, np.nan)
+    secs = plan.sections
     hook_len = 4 if override_hook != "none" else 0
     digits = max(3, len(str(len(secs))))
     limit = 24 - max(2 + digits, 4, hook_len)
-    prog = name if name is not None else sanitize_identifier(str(data.get("job_name") or "job"),
-                                                             max_len=limit)
-    arc = np.asarray(smp["arc"], bool)
-    move_id = np.asarray(smp["move"])
+    prog = name if name is not None else sanitize_identifier(plan.job_name or "job", max_len=limit)
+    arc = np.asarray(smp.arc, bool)
+    move_id = np.asarray(smp.move)
     pose = np.hstack([pos * _MM, abc])
     sections: list[KrlSection] = []
     moves: list[KrlMove] = []
     sample_of: list[int] = []
     expect = 0
     for k, sec in enumerate(secs):
-        a, b = int(sec["sample_start"]), int(sec["sample_stop"])
+        a, b = sec.sample_start, sec.sample_stop
         if a != expect or b <= a or b > n:
-            raise ExportError(f"{plan.path}: section {sec.get('index', k)} covers samples "
+            raise ExportError(f"{where}: section {sec.index} covers samples "
                               f"{a}..{b}, expected to start at {expect} and end by {n}; the "
                               "sections must partition the samples")
         expect = b
-        kind = str(sec.get("kind", "cut"))
-        where = ""
-        if sec.get("line_start") is not None:
-            where = f"source lines {sec['line_start']}-{sec.get('line_end')}"
-            if sec.get("file"):
-                where += f" of {os.path.basename(str(sec['file']))}"
+        place = ""
+        if sec.line_start is not None:
+            place = f"source lines {sec.line_start}-{sec.line_end}"
+            if sec.file:
+                place += f" of {os.path.basename(sec.file)}"
         extra = []
-        for key, label, unit in (("margin_N_per_m", "margin", "N/m"), ("force_max_N", "F max", "N"),
-                                 ("deflection_max_mm", "defl max", "mm")):
-            v = sec.get(key)
-            if isinstance(v, (int, float)) and math.isfinite(v):
+        for v, label, unit in ((sec.margin, "margin", "N/m"), (sec.force_max, "F max", "N"),
+                               (None if sec.deflection_max is None else sec.deflection_max * _MM,
+                                "defl max", "mm")):
+            if v is not None and math.isfinite(v):
                 extra.append(f"{label} {v:.4g} {unit}")
-        comment = "; ".join(x for x in (f"plan section {sec.get('index', k)}", where,
-                                        ", ".join(extra)) if x)
-        sections.append(KrlSection(_feed_m_s(sec.get("feed_mm_s"), kind), kind,
-                                   str(sec.get("binding") or ""), comment))
+        comment = "; ".join(x for x in (f"plan section {sec.index}", place, ", ".join(extra)) if x)
+        sections.append(KrlSection(_feed_m_s(sec.feed, sec.kind), sec.kind, sec.binding or "",
+                                   comment))
         i = a
         while i < b:
             if arc[i] and i > 0:
@@ -288,23 +271,21 @@ def plan_to_krl(plan: Plan | str | os.PathLike, name: str | None = None,
             sample_of.append(i)
             i += 1
     if expect != n:
-        raise ExportError(f"{plan.path}: the sections end at sample {expect} of {n}")
+        raise ExportError(f"{where}: the sections end at sample {expect} of {n}")
     if moves and moves[0].kind == "CIRC":      # cannot happen: the first sample is a LIN target
-        raise ExportError(f"{plan.path}: the path starts with an arc")
+        raise ExportError(f"{where}: the path starts with an arc")
     if moves:
         last = moves[-1]
         moves[-1] = KrlMove(last.kind, last.target, last.section, last.aux, approx=False)
-    comments = [f"cctmill KRL export of job {data.get('job_name', '?')} "
-                f"(plan method {data.get('method', '?')}, {len(secs)} sections, "
-                f"{n} samples)",
-                f"plan: {plan.path}",
+    comments = [f"cctmill KRL export of job {plan.job_name} "
+                f"(plan method {plan.method}, {len(secs)} sections, {n} samples)",
+                f"plan: {where}",
                 "poses: TCP in $BASE [mm, deg]; $VEL.CP [m/s]; feeds in the .dat, retune there",
-                f"cycle time (planned) {float(data.get('cycle_time_s') or math.nan):.1f} s at "
-                "$OV_PRO 100"]
+                f"cycle time (planned) {plan.cycle_time:.1f} s at $OV_PRO 100"]
     spec = KrlProgramSpec(
         name=prog, bco_axes_deg=tuple(float(x) for x in q0), controller=controller,
-        base=_frame(data.get("base_frame"), "base") if base_index is None else base_index,
-        tool=_frame(data.get("tool_frame"), "tool") if tool_index is None else tool_index,
+        base=KrlFrame(*plan.frame_mm_deg("base")) if base_index is None else base_index,
+        tool=KrlFrame(*plan.frame_mm_deg("tool")) if tool_index is None else tool_index,
         advance=advance, apo_cdis_mm=apo_cdis_mm, override_hook=override_hook,
         comments=tuple(comments))
     return KrlProgram(spec, tuple(sections), tuple(moves), tuple(notes), tuple(sample_of))

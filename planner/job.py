@@ -31,6 +31,7 @@ from __future__ import annotations
 import difflib
 import json
 import tomllib
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -39,19 +40,21 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from models.errors import CctmillError
 from models.robot import DEFAULT_ROBOT
+from robot_io.krl.frames import frame_from_mm_deg
 
 __all__ = [
     "CellSection",
     "EngagementSection",
     "Job",
     "JobError",
+    "JobSI",
     "JobSection",
+    "KEY_DOCS",
     "KinematicsSection",
     "LimitsSection",
     "ModelSection",
-    "KEY_DOCS",
     "PathSection",
-    "PlanSection",
+    "PlanSettings",
     "SpindleSection",
     "StockSection",
     "ToolSection",
@@ -204,7 +207,7 @@ class ModelSection(_Section):
     cct: bool = True
 
 
-class PlanSection(_Section):
+class PlanSettings(_Section):
     """``[plan]``: how ``cctmill plan`` chooses sections and feeds."""
 
     method: Literal["optimize", "thesis", "constant"] = "optimize"
@@ -240,7 +243,7 @@ class Job(_Section):
     limits: LimitsSection = LimitsSection()
     engagement: EngagementSection
     model: ModelSection = ModelSection()
-    plan: PlanSection = PlanSection()
+    plan: PlanSettings = PlanSettings()
     path: PathSection = PathSection()
     kinematics: KinematicsSection = KinematicsSection()
     folder: str = "."
@@ -251,11 +254,85 @@ class Job(_Section):
 
     def base_frame(self) -> np.ndarray:
         """``$BASE`` as a 4×4 homogeneous transform (workpiece → robot base), SI."""
-        return frame_matrix(self.cell.base_mm, self.cell.base_abc_deg)
+        return frame_from_mm_deg(self.cell.base_mm, self.cell.base_abc_deg)
 
     def tool_frame(self) -> np.ndarray:
         """``$TOOL`` as a 4×4 homogeneous transform (TCP → flange), SI."""
-        return frame_matrix(self.cell.tcp_mm, self.cell.tcp_abc_deg)
+        return frame_from_mm_deg(self.cell.tcp_mm, self.cell.tcp_abc_deg)
+
+    def to_si(self) -> JobSI:
+        """The job's numbers in SI: the one place its mm, degrees and rpm are converted."""
+        from planner.limits import Limits
+
+        cell, kin, eng, spindle = self.cell, self.kinematics, self.engagement, self.spindle
+        st = eng.stock
+        return JobSI(
+            base=self.base_frame(), tool=self.tool_frame(),
+            base_xyz=tuple(v * 1e-3 for v in cell.base_mm),
+            base_abc=tuple(float(np.radians(v)) for v in cell.base_abc_deg),
+            tool_xyz=tuple(v * 1e-3 for v in cell.tcp_mm),
+            tool_abc=tuple(float(np.radians(v)) for v in cell.tcp_abc_deg),
+            tcp=np.asarray(cell.tcp_mm) * 1e-3,
+            chord_tol=self.path.chord_tol_mm * 1e-3, step_max=self.path.step_max_mm * 1e-3,
+            seed_joints=(np.radians(kin.seed_joints_deg) if kin.seed_joints_deg is not None
+                         else None),
+            tool_rotation=np.radians(kin.tool_rotation_deg),
+            tool_radius=self.tool.diameter_mm * 5e-4 if self.tool.diameter_mm else None,
+            a_e=None if eng.ae_mm is None else eng.ae_mm * 1e-3,
+            a_p=None if eng.ap_mm is None else eng.ap_mm * 1e-3,
+            stock_box=(None if st is None or st.box_mm is None
+                       else tuple(v * 1e-3 for v in st.box_mm)),
+            stock_outline=(None if st is None or st.outline_mm is None
+                           else [(x * 1e-3, y * 1e-3) for x, y in st.outline_mm]),
+            stock_z=None if st is None else (st.z_bottom_mm * 1e-3, st.z_top_mm * 1e-3),
+            limits=Limits.from_job(self),
+            spindle_speed=spindle.rpm * 2.0 * np.pi / 60.0,
+            spindle_com=None if spindle.com_mm is None else np.asarray(spindle.com_mm) * 1e-3,
+            gamma_window=tuple(np.radians(self.model.gamma_window_deg)),
+            thesis_section_length=self.plan.thesis_section_length_mm * 1e-3)
+
+
+@dataclass(frozen=True)
+class JobSI:
+    """A job's numbers in SI (:meth:`Job.to_si`); names as in the job without their units.
+
+    Attributes:
+        base, tool: ``$BASE`` and ``$TOOL`` as 4×4 transforms [m]; base_xyz/base_abc and
+            tool_xyz/tool_abc the same as origin [m] (3,) and KUKA A, B, C [rad] (3,).
+        tcp: the TCP in the flange frame [m], (3,).
+        chord_tol, step_max: path sampling [m].
+        seed_joints: IK seed [rad], (6,) or None; tool_rotation: the fixed rotation about the
+            tool axis [rad].
+        tool_radius: the job's tool radius [m] (None: the tool data's).
+        a_e, a_p: fixed engagement [m] (None where not given).
+        stock_box (x0, y0, x1, y1) [m] or stock_outline [(x, y)] [m], stock_z (bottom, top) [m].
+        limits: the limits (:class:`planner.limits.Limits`).
+        spindle_speed [rad/s]; spindle_com [m] (3,) or None; gamma_window (lo, hi) [rad].
+        thesis_section_length: the thesis method's initial section length [m].
+    """
+
+    base: np.ndarray
+    tool: np.ndarray
+    base_xyz: tuple[float, ...]
+    base_abc: tuple[float, ...]
+    tool_xyz: tuple[float, ...]
+    tool_abc: tuple[float, ...]
+    tcp: np.ndarray
+    chord_tol: float
+    step_max: float
+    seed_joints: np.ndarray | None
+    tool_rotation: float
+    tool_radius: float | None
+    a_e: float | None
+    a_p: float | None
+    stock_box: tuple[float, ...] | None
+    stock_outline: list[tuple[float, float]] | None
+    stock_z: tuple[float, float] | None
+    limits: Any
+    spindle_speed: float
+    spindle_com: np.ndarray | None
+    gamma_window: tuple[float, ...]
+    thesis_section_length: float
 
 
 #: One line per key for the generated reference (a test checks every schema field has one).
@@ -340,21 +417,9 @@ def reference_markdown() -> str:
     return "\n".join(out).rstrip() + "\n"
 
 
-def frame_matrix(xyz_mm, abc_deg) -> np.ndarray:
-    """4×4 transform from a KUKA frame: translation [mm] and A, B, C [deg], R = Rz(A)Ry(B)Rx(C)."""
-    a, b, c = np.radians(abc_deg)
-    rz = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
-    ry = np.array([[np.cos(b), 0, np.sin(b)], [0, 1, 0], [-np.sin(b), 0, np.cos(b)]])
-    rx = np.array([[1, 0, 0], [0, np.cos(c), -np.sin(c)], [0, np.sin(c), np.cos(c)]])
-    t = np.eye(4)
-    t[:3, :3] = rz @ ry @ rx
-    t[:3, 3] = np.asarray(xyz_mm, float) * 1e-3
-    return t
-
-
 _MODELS = {"job": JobSection, "cell": CellSection, "tool": ToolSection,
            "spindle": SpindleSection, "limits": LimitsSection, "engagement": EngagementSection,
-           "model": ModelSection, "plan": PlanSection, "path": PathSection, "kinematics": KinematicsSection,
+           "model": ModelSection, "plan": PlanSettings, "path": PathSection, "kinematics": KinematicsSection,
            "stock": StockSection}
 
 

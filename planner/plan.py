@@ -4,7 +4,9 @@
 
     job = load_job("job.toml")
     result = plan_job(job, method="optimize")      # raises on an infeasible or unsolved plan
-    write_plan_outputs(result, "out/")             # plan.json, samples.npz, report.html, PNGs
+    plan = Plan.from_result(result)                # the typed plan, SI (planner.plan_file)
+
+(:func:`planner.outputs.run_plan_job` is what ``cctmill plan`` calls: plan, files, report, KRL.)
 
 Every sample of the path gets a kind (cut / air / rapid, :mod:`planner.sections`). ``cut`` samples
 are evaluated with the full point model (:mod:`planner.ceilings`); their feed ceilings feed the
@@ -27,11 +29,12 @@ from typing import Any
 import numpy as np
 
 from models.errors import CctmillError
-from planner.ceilings import CONSTRAINTS, Ceilings, Evaluation, Limits, PathModel
+from planner.ceilings import CONSTRAINTS, Ceilings, Evaluation, PathModel
+from planner.limits import Limits
 from planner.job import Job
 from planner.optimize import SolveResult, optimize_sections
 from planner.partition import cut_time_bound, fastest_splits
-from planner.plan_file import KINDS, write_plan
+from planner.plan_file import KINDS, Plan, PlanSamples, PlanSection, SectionCharacteristic, SolverRecord
 from planner.prepare import Prepared, prepare
 from planner.sections import (
     AIR,
@@ -54,11 +57,10 @@ __all__ = [
     "PlanInfeasibleError",
     "PlanResult",
     "ROBOT_SECTION",
-    "plan_document",
     "plan_job",
+    "plan_of_result",
     "plan_prepared",
     "summary",
-    "write_plan_outputs",
 ]
 
 METHODS = ("optimize", "thesis", "constant")
@@ -86,7 +88,8 @@ class PlanInfeasibleError(CctmillError):
 
 @dataclass
 class PlanResult:
-    """A finished plan, in memory (SI). :func:`write_plan_outputs` writes it.
+    """A finished plan with everything it was made from, in memory (SI); :func:`plan_of_result`
+    (:meth:`planner.plan_file.Plan.from_result`) is the plan itself.
 
     Attributes:
         method: the method used.
@@ -102,7 +105,7 @@ class PlanResult:
         limits: the limits used.
         safety_factor: the thesis safety factor used.
         wall_times: wall time of each stage [s].
-        section_rows: the plan.json ``sections`` list.
+        plan_sections: the plan's sections with what they hold (:class:`PlanSection`, SI).
         cut_time_bound: the least cut time Σ L/f any plan with sections of at least
             ``section_length_min`` can have under these limits [s]
             (:func:`planner.partition.cut_time_bound`).
@@ -121,8 +124,13 @@ class PlanResult:
     limits: Limits
     safety_factor: float
     wall_times: dict[str, float] = field(default_factory=dict)
-    section_rows: list[dict[str, Any]] = field(default_factory=list)
+    plan_sections: tuple[PlanSection, ...] = ()
     cut_time_bound: float = float("nan")
+
+    @property
+    def section_rows(self) -> list[dict[str, Any]]:
+        """The sections as plan.json writes them (units in the key names; for reports)."""
+        return [s.as_json() for s in self.plan_sections]
 
     @property
     def cut_time(self) -> float:
@@ -261,7 +269,7 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
                for a, b, kind in runs if kind == CUT]
     else:
         cut = thesis_sections(runs, path.s, ceiling, binding, gamma_at,
-                              job.plan.thesis_section_length_mm * 1e-3, limits.section_length_min,
+                              job.to_si().thesis_section_length, limits.section_length_min,
                               sf, limits.feed_min,
                               every_sample=thesis_every_sample or method != "thesis")
         if method == "optimize":
@@ -288,7 +296,7 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
                         feed=feed, kinds=kinds, evaluation=evaluation, timing=timing,
                         solver=solver, limits=limits, safety_factor=sf, wall_times=walls)
     t = time.perf_counter()
-    result.section_rows = _section_rows(result, ceiling, pos)
+    result.plan_sections = _plan_sections(result, ceiling, pos)
     result.cut_time_bound = cut_time_bound(splits, ds, ceiling)
     walls["report_rows_s"] = time.perf_counter() - t
     return result
@@ -317,11 +325,12 @@ def plan_job(job: Job, method: str | None = None, safety_factor: float | None = 
     return result
 
 
-def _section_rows(res: PlanResult, ceiling: np.ndarray, pos: np.ndarray) -> list[dict[str, Any]]:
+def _plan_sections(res: PlanResult, ceiling: np.ndarray,
+                   pos: np.ndarray) -> tuple[PlanSection, ...]:
     prep, ev, model, timing = res.prep, res.evaluation, res.model, res.timing
     path = prep.path
     ds = step_lengths(path.s)
-    rows = []
+    rows: list[dict[str, Any]] = []
     lim = res.limits
     grid = np.geomspace(lim.feed_min, lim.feed_max, CHARACTERISTIC_FEEDS)
     pending: list[tuple[dict[str, Any], int]] = []
@@ -329,38 +338,32 @@ def _section_rows(res: PlanResult, ceiling: np.ndarray, pos: np.ndarray) -> list
         a, b = sec.start, sec.stop
         length = float(ds[a:b].sum())
         t_sec = float(timing.time[b - 1] - (timing.time[a - 1] if a > 0 else 0.0))
+        robot_limited = bool(length > 0 and t_sec > 0 and length / t_sec < ROBOT_SECTION * sec.feed)
         row: dict[str, Any] = {
             "index": i, "kind": KINDS[sec.kind], "sample_start": a, "sample_stop": b,
-            "s_start_m": float(path.s[a - 1] if a > 0 else path.s[0]),
-            "s_end_m": float(path.s[b - 1]), "length_m": length, "feed_mm_s": sec.feed * 1e3,
-            "binding": sec.binding, "process_binding": sec.binding, "note": sec.note,
-            "line_start": int(path.line[a]), "line_end": int(path.line[b - 1]),
-            "file": path.files[int(path.file[a])], "time_s": t_sec,
-            "process_time_s": length / sec.feed,
-            "robot_limited": bool(length > 0 and t_sec > 0 and length / t_sec < ROBOT_SECTION * sec.feed),
-            "tooth_frequency_hz": model.tooth_frequency,
-            "margin_N_per_m": None, "force_max_N": None, "deflection_max_mm": None,
-            "deflection_normal_max_mm": None, "power_max_kW": None, "gamma_deg": None,
-            "gamma_range_deg": None, "natural_frequency_hz": None, "characteristic": None,
+            "s_start": float(path.s[a - 1] if a > 0 else path.s[0]),
+            "s_end": float(path.s[b - 1]), "length": length, "feed": sec.feed,
+            "binding": "robot" if robot_limited else sec.binding, "process_binding": sec.binding,
+            "note": sec.note, "line_start": int(path.line[a]), "line_end": int(path.line[b - 1]),
+            "file": path.files[int(path.file[a])], "time": t_sec,
+            "process_time": length / sec.feed, "robot_limited": robot_limited,
+            "tooth_frequency": model.tooth_frequency,
         }
-        if row["robot_limited"]:
-            row["binding"] = "robot"
         if sec.kind == CUT:
             k = pos[a:b]
             k = k[k >= 0]
             tight = int(k[np.argmin(ceiling[model.index[k]])])
+            nat = ev.natural_frequencies[tight]
             row.update({
-                "margin_N_per_m": float(ev.margin[k].min()),
-                "force_max_N": float(ev.force[k].max()),
-                "deflection_max_mm": float(ev.deflection_norm[k].max() * 1e3),
-                "deflection_normal_max_mm": float(np.abs(ev.deflection_normal[k]).max() * 1e3),
-                "power_max_kW": float(ev.power[k].max() * 1e-3),
-                "gamma_deg": float(np.degrees(ev.gamma[tight])),
-                "gamma_range_deg": [float(np.degrees(ev.gamma[k].min())),
-                                    float(np.degrees(ev.gamma[k].max()))],
-                "natural_frequency_hz": (None if not np.all(np.isfinite(ev.natural_frequencies[tight]))
-                                         else ev.natural_frequencies[tight].tolist()),
-                "ceiling_min_mm_s": float(ceiling[model.index[tight]] * 1e3),
+                "margin": float(ev.margin[k].min()),
+                "force_max": float(ev.force[k].max()),
+                "deflection_max": float(ev.deflection_norm[k].max()),
+                "deflection_normal_max": float(np.abs(ev.deflection_normal[k]).max()),
+                "power_max": float(ev.power[k].max()),
+                "gamma": float(ev.gamma[tight]),
+                "gamma_range": (float(ev.gamma[k].min()), float(ev.gamma[k].max())),
+                "natural_frequencies": None if not np.all(np.isfinite(nat)) else tuple(nat.tolist()),
+                "ceiling_min": float(ceiling[model.index[tight]]),
                 "tightest_sample": int(model.index[tight]),
             })
             pending.append((row, tight))
@@ -371,17 +374,14 @@ def _section_rows(res: PlanResult, ceiling: np.ndarray, pos: np.ndarray) -> list
         ch = model.evaluate(np.tile(grid, len(pending)), np.repeat([t for _, t in pending], g))
         for j, (row, tight) in enumerate(pending):
             sl = slice(j * g, (j + 1) * g)
-            row["characteristic"] = {
-                "sample": int(model.index[tight]), "feeds_mm_s": (grid * 1e3).tolist(),
-                "margin_N_per_m": ch.margin[sl].tolist(),
-                "gamma_deg": np.degrees(ch.gamma[sl]).tolist(), "force_N": ch.force[sl].tolist(),
-                "deflection_mm": (ch.deflection_norm[sl] * 1e3).tolist(),
-                "stable": ch.stable[sl].tolist(), "ok": ch.all_ok[sl].tolist(),
-            }
-    return rows
+            row["characteristic"] = SectionCharacteristic(
+                sample=int(model.index[tight]), feeds=grid, margin=ch.margin[sl],
+                gamma=ch.gamma[sl], force=ch.force[sl], stable=ch.stable[sl],
+                deflection=ch.deflection_norm[sl], ok=ch.all_ok[sl])
+    return tuple(PlanSection(**row) for row in rows)
 
 
-def _samples(res: PlanResult) -> dict[str, np.ndarray]:
+def _plan_samples(res: PlanResult) -> PlanSamples:
     prep, ev, model = res.prep, res.evaluation, res.model
     path, job = prep.path, prep.job
     n = len(path)
@@ -391,30 +391,26 @@ def _samples(res: PlanResult) -> dict[str, np.ndarray]:
     rot = np.asarray(rot, float).reshape(3, n, 3).transpose(1, 0, 2) @ tool[:3, :3]
     base = path.base
     rot_wp = base[:3, :3].T @ rot
+
     def spread(v: np.ndarray, shape: tuple = ()) -> np.ndarray:
         out = np.full((n, *shape), np.nan)
         out[model.index] = v
         return out
 
     e = prep.engagement
-    sec = section_of_samples(res.sections, n)
-    arc = np.array([m.is_arc for m in path.moves])[path.move]
-    defl = spread(ev.deflection, (3,)) @ base[:3, :3]  # base → workpiece axes
-    return {
-        "s_m": path.s, "q_rad": prep.kinematics.q, "position_wp_m": path.position_wp,
-        "abc_wp_deg": matrices_to_abc(rot_wp), "tool_axis_wp": path.tool_axis_wp, "section": sec,
-        "kind": res.kinds, "arc": arc, "move": path.move, "line": path.line, "source_file": path.file,
-        "feed_mm_s": res.feed * 1e3, "speed_mm_s": res.timing.speed * 1e3,
-        "time_s": res.timing.time, "force_N": spread(ev.force),
-        "deflection_mm": spread(ev.deflection_norm) * 1e3, "deflection_wp_m": defl,
-        "deflection_normal_mm": spread(ev.deflection_normal) * 1e3,
-        "gamma_deg": np.degrees(spread(ev.gamma)), "margin_N_per_m": spread(ev.margin),
-        "power_kW": spread(ev.power) * 1e-3, "a_e_m": e.a_e, "a_p_m": e.a_p,
-        "mode": e.mode.astype(int), "ceiling_mm_s": _spread_ceiling(res) * 1e3,
-        "robot_limited": res.timing.robot_limited,
-        "bound_mm_s": res.timing.bound * 1e3,
-        "joint_speed_rad_s": res.timing.joint_speed,
-    }
+    return PlanSamples(
+        s=path.s, q=prep.kinematics.q, position_wp=path.position_wp,
+        abc_wp=np.radians(matrices_to_abc(rot_wp)), tool_axis_wp=path.tool_axis_wp,
+        section=section_of_samples(res.sections, n), kind=res.kinds,
+        arc=np.array([m.is_arc for m in path.moves])[path.move], move=path.move, line=path.line,
+        source_file=path.file, feed=res.feed, speed=res.timing.speed, time=res.timing.time,
+        force=spread(ev.force), deflection=spread(ev.deflection_norm),
+        deflection_wp=spread(ev.deflection, (3,)) @ base[:3, :3],  # base → workpiece axes
+        deflection_normal=spread(ev.deflection_normal), gamma=spread(ev.gamma),
+        margin=spread(ev.margin), power=spread(ev.power), a_e=e.a_e, a_p=e.a_p,
+        mode=e.mode.astype(int), ceiling=_spread_ceiling(res),
+        robot_limited=res.timing.robot_limited, bound=res.timing.bound,
+        joint_speed=res.timing.joint_speed)
 
 
 def _spread_ceiling(res: PlanResult) -> np.ndarray:
@@ -423,27 +419,23 @@ def _spread_ceiling(res: PlanResult) -> np.ndarray:
     return out
 
 
-def plan_document(res: PlanResult) -> dict[str, Any]:
-    """The plan.json document (without format/version/samples_file)."""
+def plan_of_result(res: PlanResult) -> Plan:
+    """The typed plan (SI) of a result, in memory: what the exporter and the supervisor take."""
     job = res.prep.job
     tool = res.prep.tool
-    return {
-        "method": res.method, "job_name": job.job.name,
-        "job_folder": str(job.folder),
-        "robot": job.cell.robot, "files": list(res.prep.path.files),
-        "base_frame": {"xyz_mm": list(job.cell.base_mm), "abc_deg": list(job.cell.base_abc_deg)},
-        "tool_frame": {"xyz_mm": list(job.cell.tcp_mm), "abc_deg": list(job.cell.tcp_abc_deg)},
-        "spindle_rpm": job.spindle.rpm, "flutes": tool.flutes,
-        "tool_diameter_mm": tool.radius * 2e3, "material": job.material,
-        "model": {"process_model": job.model.process_model, "mass_model": job.model.mass_model,
-                  "criterion": job.model.chatter_criterion, "cct": job.model.cct},
-        "constraints": res.limits.as_json(res.safety_factor),
-        "sections": res.section_rows,
-        "cycle_time_s": res.cycle_time, "process_time_s": res.process_time,
-        "solver": res.solver.as_json(),
-        "wall_times_s": res.wall_times,
-        "summary": summary(res),
-    }
+    si = job.to_si()
+    return Plan(
+        method=res.method, job_name=job.job.name, job_folder=str(job.folder), robot=job.cell.robot,
+        files=tuple(res.prep.path.files), base_xyz=si.base_xyz, base_abc=si.base_abc,
+        tool_xyz=si.tool_xyz, tool_abc=si.tool_abc,
+        spindle_rpm=job.spindle.rpm, flutes=tool.flutes, tool_diameter=tool.radius * 2.0,
+        material=job.material,
+        model={"process_model": job.model.process_model, "mass_model": job.model.mass_model,
+               "criterion": job.model.chatter_criterion, "cct": job.model.cct},
+        limits=res.limits, safety_factor=res.safety_factor, sections=res.plan_sections,
+        samples=_plan_samples(res), cycle_time=res.cycle_time, process_time=res.process_time,
+        solver=SolverRecord(**{k.removesuffix("_s"): v for k, v in res.solver.as_json().items()}),
+        wall_times=dict(res.wall_times), summary=summary(res))
 
 
 def summary(res: PlanResult) -> dict[str, Any]:
@@ -469,17 +461,3 @@ def summary(res: PlanResult) -> dict[str, Any]:
                             float(res.feed[res.kinds == CUT].max() * 1e3)] if ev.force.size else None,
         "constraints": list(CONSTRAINTS),
     }
-
-
-def write_plan_outputs(res: PlanResult, folder, report: bool = True) -> dict[str, Any]:
-    """Write plan.json and samples.npz (and, with ``report``, report.html + PNGs) into ``folder``.
-
-    Returns the written paths by name.
-    """
-    written: dict[str, Any] = {"plan": write_plan(folder, plan_document(res), _samples(res))}
-    written["samples"] = written["plan"].parent / "samples.npz"
-    if report:
-        from planner.report import write_report
-
-        written.update(write_report(res, folder))
-    return written

@@ -1,55 +1,23 @@
-"""The plan on disk: ``plan.json`` plus a per-sample table ``samples.npz``.
+"""The plan: one typed object in SI from the optimiser to the exporter and the supervisor, and its
+files ``plan.json`` + ``samples.npz`` (the only place its units are mm, degrees and kW).
 
-This is the contract between the planner (``cctmill plan``), the KRL exporter (``cctmill export``)
-and the online supervisor (``cctmill supervise``). Units are in the key names (the file is an edge);
-:func:`load_plan` hands back SI arrays and plain dicts.
-
-``plan.json`` (``format`` = ``"cctmill-plan"``, ``version`` = 1)::
-
-    method            "optimize" | "thesis" | "constant"
-    job_name, job_file
-    robot             robot data name
-    base_frame        {"xyz_mm": [3], "abc_deg": [3]}     $BASE (workpiece frame in the robot base)
-    tool_frame        {"xyz_mm": [3], "abc_deg": [3]}     $TOOL (TCP in the flange frame)
-    spindle_rpm, flutes, tool_diameter_mm, material
-    model             {"process_model", "mass_model", "criterion", "cct"}
-    constraints       {"force_max_N", "deflection_tol_mm", "power_max_kW", "feed_min_mm_s",
-                       "feed_max_mm_s", "feed_change_max_mm_s", "margin_min_N_per_m",
-                       "section_length_min_mm", "safety_factor"}
-    sections          list, in path order, partitioning the samples:
-        index, kind ("cut" | "air" | "rapid"), sample_start, sample_stop (exclusive),
-        s_start_m, s_end_m, feed_mm_s, binding (chatter | force | deflection | power | robot |
-        feed_max | feed_change), margin_N_per_m (min over the section), force_max_N,
-        deflection_max_mm, deflection_normal_max_mm, power_max_kW, gamma_deg (at the tightest
-        sample), gamma_range_deg [lo, hi], natural_frequency_hz ([f1, f2] at the tightest sample,
-        null for the isotropic mass model), tooth_frequency_hz, line_start, line_end, file,
-        time_s (timed duration), robot_limited (bool),
-        characteristic {sample, feeds_mm_s, margin_N_per_m, gamma_deg, force_N, stable}
-            the stability characteristic at the section's tightest sample (cut sections only)
-    cycle_time_s      toppra-timed cycle (rapids included)
-    process_time_s    Σ L_i / f_i over the cut and air sections (no robot limits)
-    solver            {"status", "success", "iterations", "build_time_s", "solve_time_s"}
-    samples_file      "samples.npz" (relative to plan.json)
-
-``samples.npz`` (n samples)::
-
-    s_m (n,)  q_rad (n, 6)  position_wp_m (n, 3)  abc_wp_deg (n, 3)  tool_axis_wp (n, 3)
-    section (n,) int  kind (n,) int (0 cut, 1 air, 2 rapid)  arc (n,) bool  move (n,) int
-    line (n,) int  source_file (n,) int (index into plan.json's ``files``)
-    feed_mm_s (n,) planned  speed_mm_s (n,) timed  time_s (n,)
-    force_N (n,)  deflection_mm (n,)  deflection_wp_m (n, 3)  deflection_normal_mm (n,)
-    gamma_deg (n,)  margin_N_per_m (n,)  power_kW (n,)  a_e_m (n,)  a_p_m (n,)  mode (n,) int
-
-``abc_wp_deg`` is the TCP orientation in ``$BASE`` as KUKA A, B, C; ``deflection_wp_m`` the
-predicted static deflection of the TCP in ``$BASE`` axes (the KRL exporter's mirror compensation
-subtracts it). Samples of one arc move (``arc`` true, same ``move``) lie on that arc.
+:class:`Plan` is made in memory by :meth:`Plan.from_result` (no disk round trip), written by
+:meth:`Plan.save` and read back by :func:`load_plan`. Every consumer — the KRL exporter, the
+supervisor, the simulated cut, the demo — takes a :class:`Plan`. The file contract is in
+``docs/planner.md`` ("plan.json"); in short, ``plan.json`` (``format`` ``"cctmill-plan"``,
+``version`` 1) holds the job's identity, ``base_frame``/``tool_frame`` (``xyz_mm``, ``abc_deg``),
+``constraints`` (:class:`planner.limits.Limits`), the ``sections`` (one object per
+:class:`PlanSection`, units in the key names), ``cycle_time_s``, ``process_time_s``, ``solver``,
+``wall_times_s``, ``summary`` and ``samples_file``; ``samples.npz`` one array per
+:data:`SAMPLE_ARRAYS` entry (and the optional ones of :data:`SAMPLE_EXTRA`).
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -57,15 +25,22 @@ import numpy as np
 
 from models.errors import DataFileError
 from planner._atomic import atomic_path, write_text_atomic
+from planner.limits import Limits
 
 __all__ = [
     "BINDINGS",
     "FORMAT",
+    "FRAME_DECIMALS",
     "KINDS",
+    "SAMPLE_ARRAYS",
+    "SAMPLE_EXTRA",
+    "VERSION",
     "Plan",
     "PlanFileError",
-    "SAMPLE_ARRAYS",
-    "VERSION",
+    "PlanSamples",
+    "PlanSection",
+    "SectionCharacteristic",
+    "SolverRecord",
     "load_plan",
     "write_plan",
 ]
@@ -76,13 +51,36 @@ VERSION = 1
 BINDINGS = ("chatter", "force", "deflection", "power", "robot", "feed_max", "feed_change")
 #: Section / sample kinds, in the order of their integer codes in ``samples.npz``.
 KINDS = ("cut", "air", "rapid")
-#: Arrays every ``samples.npz`` holds, with their trailing shape.
+#: Decimals of a frame's mm and degree values in plan.json: the frame is the job's, typed in mm
+#: and degrees; 1e-9 mm / 1e-9° keeps what the user wrote and drops the float noise of mm → m → mm.
+FRAME_DECIMALS = 9
+
+#: Arrays every ``samples.npz`` holds: file name → (attribute of :class:`PlanSamples`, factor
+#: from SI to the file's unit or ``"deg"``, trailing shape).
 SAMPLE_ARRAYS: dict[str, tuple[int, ...]] = {
     "s_m": (), "q_rad": (6,), "position_wp_m": (3,), "abc_wp_deg": (3,), "tool_axis_wp": (3,),
     "section": (), "kind": (), "arc": (), "move": (), "line": (), "source_file": (), "feed_mm_s": (),
     "speed_mm_s": (), "time_s": (), "force_N": (), "deflection_mm": (), "deflection_wp_m": (3,),
     "deflection_normal_mm": (), "gamma_deg": (), "margin_N_per_m": (), "power_kW": (),
     "a_e_m": (), "a_p_m": (), "mode": (),
+}
+#: Arrays a plan made by ``cctmill plan`` also holds (synthetic plans may not).
+SAMPLE_EXTRA: dict[str, tuple[int, ...]] = {
+    "ceiling_mm_s": (), "robot_limited": (), "bound_mm_s": (), "joint_speed_rad_s": (6,),
+}
+#: file name → (attribute, SI → file conversion); ``None`` copies, ``"deg"`` is rad → deg.
+_SAMPLE_UNITS: dict[str, tuple[str, float | str | None]] = {
+    "s_m": ("s", None), "q_rad": ("q", None), "position_wp_m": ("position_wp", None),
+    "abc_wp_deg": ("abc_wp", "deg"), "tool_axis_wp": ("tool_axis_wp", None),
+    "section": ("section", None), "kind": ("kind", None), "arc": ("arc", None),
+    "move": ("move", None), "line": ("line", None), "source_file": ("source_file", None),
+    "feed_mm_s": ("feed", 1e3), "speed_mm_s": ("speed", 1e3), "time_s": ("time", None),
+    "force_N": ("force", None), "deflection_mm": ("deflection", 1e3),
+    "deflection_wp_m": ("deflection_wp", None), "deflection_normal_mm": ("deflection_normal", 1e3),
+    "gamma_deg": ("gamma", "deg"), "margin_N_per_m": ("margin", None), "power_kW": ("power", 1e-3),
+    "a_e_m": ("a_e", None), "a_p_m": ("a_p", None), "mode": ("mode", None),
+    "ceiling_mm_s": ("ceiling", 1e3), "robot_limited": ("robot_limited", None),
+    "bound_mm_s": ("bound", 1e3), "joint_speed_rad_s": ("joint_speed", None),
 }
 _REQUIRED = ("format", "version", "method", "sections", "cycle_time_s", "constraints", "solver",
              "samples_file", "base_frame", "tool_frame")
@@ -94,35 +92,431 @@ class PlanFileError(DataFileError):
     """A plan file is missing, malformed, or not a cctmill plan (``path``: the file)."""
 
 
+def _to_file(v: Any, unit: float | str | None) -> Any:
+    if v is None or unit is None:
+        return v
+    if unit == "deg":
+        return np.degrees(v)
+    return v * unit
+
+
+def _from_file(v: Any, unit: float | str | None) -> Any:
+    if v is None or unit is None:
+        return v
+    if unit == "deg":
+        return np.radians(v)
+    return v / unit
+
+
+def _opt(v: Any) -> float | None:
+    return None if v is None else float(v)
+
+
 @dataclass(frozen=True)
-class Plan:
-    """A plan read back from disk.
+class SectionCharacteristic:
+    """A cut section's stability characteristic at its tightest sample.
 
     Attributes:
-        path: the ``plan.json`` file.
-        data: the JSON document (units in key names).
-        samples: the per-sample arrays of ``samples.npz`` (units in names), see module docstring.
+        sample: the path sample it was evaluated at.
+        feeds: feeds [m/s], shape (k,), increasing.
+        margin: chatter margin [N/m], (k,).
+        gamma: γ [rad], (k,).
+        force: resultant average force [N], (k,).
+        stable: the criterion's verdict, (k,) bool.
+        deflection: ‖δ‖ [m], (k,) (None in synthetic plans).
+        ok: every limit met, (k,) bool (None in synthetic plans).
     """
 
-    path: Path
-    data: dict[str, Any]
-    samples: dict[str, np.ndarray]
+    sample: int
+    feeds: np.ndarray
+    margin: np.ndarray
+    gamma: np.ndarray
+    force: np.ndarray
+    stable: np.ndarray
+    deflection: np.ndarray | None = None
+    ok: np.ndarray | None = None
+
+    def as_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "sample": self.sample, "feeds_mm_s": (self.feeds * 1e3).tolist(),
+            "margin_N_per_m": self.margin.tolist(), "gamma_deg": np.degrees(self.gamma).tolist(),
+            "force_N": self.force.tolist()}
+        if self.deflection is not None:
+            out["deflection_mm"] = (self.deflection * 1e3).tolist()
+        out["stable"] = self.stable.tolist()
+        if self.ok is not None:
+            out["ok"] = self.ok.tolist()
+        return out
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> SectionCharacteristic:
+        """Raises ``KeyError``/``TypeError``/``ValueError`` for a malformed object."""
+        feeds = np.asarray(d["feeds_mm_s"], float) * 1e-3
+        k = feeds.size
+
+        def arr(key: str, scale: float = 1.0, dtype: type = float) -> np.ndarray:
+            a = np.asarray(d[key], dtype) * scale if dtype is float else np.asarray(d[key], dtype)
+            if a.shape != (k,):
+                raise ValueError(f"characteristic {key} has shape {a.shape}, expected ({k},)")
+            return a
+
+        return cls(sample=int(d.get("sample", -1)), feeds=feeds, margin=arr("margin_N_per_m"),
+                   gamma=np.radians(arr("gamma_deg")) if "gamma_deg" in d else np.full(k, np.nan),
+                   force=arr("force_N"),
+                   stable=arr("stable", dtype=bool) if "stable" in d else np.ones(k, bool),
+                   deflection=arr("deflection_mm", 1e-3) if "deflection_mm" in d else None,
+                   ok=arr("ok", dtype=bool) if "ok" in d else None)
+
+
+@dataclass(frozen=True)
+class PlanSection:
+    """One section of the plan, SI (None: not evaluated, e.g. air and rapid sections).
+
+    Attributes:
+        index: position in the plan.
+        kind: ``"cut"``, ``"air"`` or ``"rapid"``.
+        sample_start, sample_stop: the samples it covers, ``[start, stop)``.
+        s_start, s_end: arc length at its ends [m]; length: its length [m].
+        feed: planned feed [m/s] (the ``$VEL.CP`` of the section).
+        binding: what holds it back (:data:`BINDINGS`), ``robot`` when the timed speed stays under
+            90 % of the feed; process_binding: what binds the feed itself.
+        note: why the feed is what it is, for people.
+        line_start, line_end, file: where in the CAM program it comes from.
+        time: toppra-timed duration [s]; process_time: length / feed [s].
+        robot_limited: the robot's joint limits hold the timed speed under the feed.
+        tooth_frequency: tooth-passing frequency [Hz].
+        margin: least chatter margin over the section [N/m]; force_max [N]; deflection_max,
+            deflection_normal_max [m]; power_max [W].
+        gamma: γ at the tightest sample [rad]; gamma_range: (lo, hi) over the section [rad].
+        natural_frequencies: (f1, f2) at the tightest sample [Hz] (None for the isotropic mass).
+        ceiling_min: the tightest sample's feed ceiling [m/s]; tightest_sample: its index.
+        characteristic: the stability characteristic at the tightest sample.
+    """
+
+    index: int
+    kind: str
+    sample_start: int
+    sample_stop: int
+    s_start: float
+    s_end: float
+    feed: float
+    binding: str
+    length: float | None = None
+    process_binding: str | None = None
+    note: str | None = None
+    line_start: int | None = None
+    line_end: int | None = None
+    file: str | None = None
+    time: float | None = None
+    process_time: float | None = None
+    robot_limited: bool | None = None
+    tooth_frequency: float | None = None
+    margin: float | None = None
+    force_max: float | None = None
+    deflection_max: float | None = None
+    deflection_normal_max: float | None = None
+    power_max: float | None = None
+    gamma: float | None = None
+    gamma_range: tuple[float, float] | None = None
+    natural_frequencies: tuple[float, float] | None = None
+    ceiling_min: float | None = None
+    tightest_sample: int | None = None
+    characteristic: SectionCharacteristic | None = None
+
+    def as_json(self) -> dict[str, Any]:
+        """The section's plan.json object (units in the key names)."""
+        out: dict[str, Any] = {
+            "index": self.index, "kind": self.kind, "sample_start": self.sample_start,
+            "sample_stop": self.sample_stop, "s_start_m": self.s_start, "s_end_m": self.s_end,
+            "length_m": self.length, "feed_mm_s": self.feed * 1e3, "binding": self.binding,
+            "process_binding": self.process_binding, "note": self.note,
+            "line_start": self.line_start, "line_end": self.line_end, "file": self.file,
+            "time_s": self.time, "process_time_s": self.process_time,
+            "robot_limited": self.robot_limited, "tooth_frequency_hz": self.tooth_frequency,
+            "margin_N_per_m": self.margin, "force_max_N": self.force_max,
+            "deflection_max_mm": _to_file(self.deflection_max, 1e3),
+            "deflection_normal_max_mm": _to_file(self.deflection_normal_max, 1e3),
+            "power_max_kW": _to_file(self.power_max, 1e-3),
+            "gamma_deg": None if self.gamma is None else float(np.degrees(self.gamma)),
+            "gamma_range_deg": (None if self.gamma_range is None
+                                else [float(np.degrees(g)) for g in self.gamma_range]),
+            "natural_frequency_hz": (None if self.natural_frequencies is None
+                                     else list(self.natural_frequencies)),
+            "characteristic": None if self.characteristic is None else self.characteristic.as_json(),
+        }
+        if self.ceiling_min is not None:
+            out["ceiling_min_mm_s"] = self.ceiling_min * 1e3
+            out["tightest_sample"] = self.tightest_sample
+        return out
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> PlanSection:
+        """Raises ``KeyError``/``TypeError``/``ValueError`` for a malformed object."""
+        ch = d.get("characteristic")
+        try:
+            char = SectionCharacteristic.from_json(ch) if isinstance(ch, dict) else None
+        except (KeyError, TypeError, ValueError):
+            char = None          # a broken characteristic: the section has none
+        gr, nf = d.get("gamma_range_deg"), d.get("natural_frequency_hz")
+        feed = d["feed_mm_s"]
+        return cls(
+            index=int(d["index"]), kind=str(d["kind"]), sample_start=int(d["sample_start"]),
+            sample_stop=int(d["sample_stop"]), s_start=float(d["s_start_m"]),
+            s_end=float(d["s_end_m"]), feed=math.nan if feed is None else float(feed) * 1e-3,
+            binding=str(d["binding"]), length=_opt(d.get("length_m")),
+            process_binding=d.get("process_binding"), note=d.get("note"),
+            line_start=d.get("line_start"), line_end=d.get("line_end"), file=d.get("file"),
+            time=_opt(d.get("time_s")), process_time=_opt(d.get("process_time_s")),
+            robot_limited=d.get("robot_limited"), tooth_frequency=_opt(d.get("tooth_frequency_hz")),
+            margin=_opt(d.get("margin_N_per_m")), force_max=_opt(d.get("force_max_N")),
+            deflection_max=_from_file(_opt(d.get("deflection_max_mm")), 1e3),
+            deflection_normal_max=_from_file(_opt(d.get("deflection_normal_max_mm")), 1e3),
+            power_max=_from_file(_opt(d.get("power_max_kW")), 1e-3),
+            gamma=None if d.get("gamma_deg") is None else math.radians(float(d["gamma_deg"])),
+            gamma_range=None if gr is None else (math.radians(gr[0]), math.radians(gr[1])),
+            natural_frequencies=None if nf is None else (float(nf[0]), float(nf[1])),
+            ceiling_min=_from_file(_opt(d.get("ceiling_min_mm_s")), 1e3),
+            tightest_sample=d.get("tightest_sample"), characteristic=char)
+
+
+@dataclass(frozen=True)
+class PlanSamples:
+    """Every path sample of the plan, SI; arrays of shape (n,) unless noted.
+
+    Attributes:
+        s: arc length [m]; q: joint angles [rad], (n, 6); position_wp: TCP in ``$BASE`` [m],
+            (n, 3); abc_wp: TCP orientation in ``$BASE`` as KUKA A, B, C [rad], (n, 3);
+            tool_axis_wp: unit tool axis in ``$BASE``, (n, 3).
+        section, kind (0 cut, 1 air, 2 rapid), arc (bool), move, line, source_file (index into
+            :attr:`Plan.files`): where each sample comes from.
+        feed: planned feed [m/s]; speed: timed path speed [m/s]; time: timed clock [s].
+        force [N]; deflection: ‖δ‖ [m]; deflection_wp: δ in ``$BASE`` axes [m], (n, 3);
+        deflection_normal [m]; gamma [rad]; margin [N/m]; power [W] (NaN where not cutting).
+        a_e, a_p: engagement [m]; mode: milling mode code.
+        ceiling [m/s], robot_limited (bool), bound [m/s], joint_speed [rad/s] (n, 6): optional.
+    """
+
+    s: np.ndarray
+    q: np.ndarray
+    position_wp: np.ndarray
+    abc_wp: np.ndarray
+    tool_axis_wp: np.ndarray
+    section: np.ndarray
+    kind: np.ndarray
+    arc: np.ndarray
+    move: np.ndarray
+    line: np.ndarray
+    source_file: np.ndarray
+    feed: np.ndarray
+    speed: np.ndarray
+    time: np.ndarray
+    force: np.ndarray
+    deflection: np.ndarray
+    deflection_wp: np.ndarray
+    deflection_normal: np.ndarray
+    gamma: np.ndarray
+    margin: np.ndarray
+    power: np.ndarray
+    a_e: np.ndarray
+    a_p: np.ndarray
+    mode: np.ndarray
+    ceiling: np.ndarray | None = None
+    robot_limited: np.ndarray | None = None
+    bound: np.ndarray | None = None
+    joint_speed: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return int(self.s.shape[0])
+
+    def as_arrays(self) -> dict[str, np.ndarray]:
+        """The ``samples.npz`` arrays (units in the names)."""
+        out = {}
+        for name, (attr, unit) in _SAMPLE_UNITS.items():
+            v = getattr(self, attr)
+            if v is not None:
+                out[name] = _to_file(v, unit)
+        return out
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray]) -> PlanSamples:
+        kw = {attr: _from_file(arrays[name], unit) for name, (attr, unit) in _SAMPLE_UNITS.items()
+              if name in arrays}
+        return cls(**kw)
+
+
+@dataclass(frozen=True)
+class SolverRecord:
+    """How the plan's feeds were found: solver status and success, iterations, the time to build
+    the NLP and to solve it [s], the objective (None for the thesis and constant methods)."""
+
+    status: str
+    success: bool
+    iterations: int = 0
+    build_time: float = 0.0
+    solve_time: float = 0.0
+    objective: float | None = None
+
+    def as_json(self) -> dict[str, Any]:
+        return {"status": self.status, "success": self.success, "iterations": self.iterations,
+                "build_time_s": self.build_time, "solve_time_s": self.solve_time,
+                "objective": self.objective}
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> SolverRecord:
+        return cls(status=str(d.get("status")), success=bool(d.get("success", True)),
+                   iterations=int(d.get("iterations") or 0),
+                   build_time=float(d.get("build_time_s") or 0.0),
+                   solve_time=float(d.get("solve_time_s") or 0.0), objective=d.get("objective"))
+
+
+def _frame_json(xyz: tuple[float, ...], abc: tuple[float, ...]) -> dict[str, list[float]]:
+    return {"xyz_mm": [round(v * 1e3, FRAME_DECIMALS) for v in xyz],
+            "abc_deg": [round(math.degrees(v), FRAME_DECIMALS) for v in abc]}
+
+
+def _frame_si(d: Any, which: str, where: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    try:
+        xyz = tuple(float(v) * 1e-3 for v in d["xyz_mm"])
+        abc = tuple(math.radians(float(v)) for v in d["abc_deg"])
+    except (KeyError, TypeError, ValueError) as e:
+        raise PlanFileError(where, f"{which}_frame needs xyz_mm and abc_deg ({e})") from e
+    if len(xyz) != 3 or len(abc) != 3:
+        raise PlanFileError(where, f"{which}_frame needs 3 values in xyz_mm and in abc_deg")
+    return xyz, abc
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A plan, SI. Made by :meth:`from_result` or :func:`load_plan`; written by :meth:`save`.
+
+    Attributes:
+        method: ``optimize``, ``thesis`` or ``constant``.
+        job_name, job_folder: the job it plans.
+        robot: robot data name.
+        files: the toolpath files (``PlanSection.file`` and ``PlanSamples.source_file`` refer to it).
+        base_xyz, base_abc: ``$BASE`` (workpiece frame in the robot base): origin [m] (3,) and
+            KUKA A, B, C [rad] (3,); tool_xyz, tool_abc: ``$TOOL`` (TCP in the flange frame).
+        spindle_rpm: spindle speed [rpm] (an edge value the job and KRL carry as typed).
+        flutes, tool_diameter [m], material.
+        model: ``process_model``, ``mass_model``, ``criterion``, ``cct`` the plan was made with.
+        limits: the limits it holds; safety_factor: the thesis safety factor.
+        sections: in path order, partitioning the samples.
+        samples: every sample.
+        cycle_time: toppra-timed cycle [s]; process_time: Σ L/f over feed moves [s].
+        solver: how the feeds were found.
+        wall_times: wall time of each planning stage [s] (names with ``_s``, as in the file).
+        summary: headline numbers (units in the names: a report, as in the file).
+        path: the ``plan.json`` it was read from or saved to (None for a plan only in memory).
+    """
+
+    method: str
+    job_name: str
+    robot: str
+    base_xyz: tuple[float, ...]
+    base_abc: tuple[float, ...]
+    tool_xyz: tuple[float, ...]
+    tool_abc: tuple[float, ...]
+    limits: Limits
+    sections: tuple[PlanSection, ...]
+    samples: PlanSamples
+    cycle_time: float
+    solver: SolverRecord
+    safety_factor: float | None = None
+    job_folder: str | None = None
+    files: tuple[str, ...] = ()
+    spindle_rpm: float | None = None
+    flutes: int | None = None
+    tool_diameter: float | None = None
+    material: str | None = None
+    model: dict[str, Any] = field(default_factory=dict)
+    process_time: float | None = None
+    wall_times: dict[str, float] = field(default_factory=dict)
+    summary: dict[str, Any] = field(default_factory=dict)
+    path: Path | None = None
 
     @property
-    def sections(self) -> list[dict[str, Any]]:
-        """The sections, in path order."""
-        return self.data["sections"]
+    def label(self) -> str:
+        """How messages name the plan: its file, or the job it plans."""
+        return str(self.path) if self.path is not None else f"the plan of job {self.job_name}"
 
-    @property
-    def method(self) -> str:
-        return str(self.data["method"])
+    def frame_mm_deg(self, which: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """``$BASE`` (``which="base"``) or ``$TOOL`` (``"tool"``) as plan.json and KRL write it:
+        X, Y, Z [mm] and A, B, C [deg]."""
+        xyz, abc = (self.base_xyz, self.base_abc) if which == "base" else (self.tool_xyz, self.tool_abc)
+        d = _frame_json(xyz, abc)
+        return tuple(d["xyz_mm"]), tuple(d["abc_deg"])
 
-    def section_at(self, s: float) -> dict[str, Any]:
+    def section_at(self, s: float) -> PlanSection:
         """The section containing arc length ``s`` [m] (the last one past the end)."""
         for sec in self.sections:
-            if s < sec["s_end_m"]:
+            if s < sec.s_end:
                 return sec
         return self.sections[-1]
+
+    @classmethod
+    def from_result(cls, result: Any) -> Plan:
+        """The plan of a :class:`planner.plan.PlanResult`, in memory."""
+        from planner.plan import plan_of_result
+
+        return plan_of_result(result)
+
+    # -- the file edge ------------------------------------------------------------------------
+    def document(self) -> dict[str, Any]:
+        """The plan.json document (without ``format``, ``version``, ``samples_file``)."""
+        return {
+            "method": self.method, "job_name": self.job_name, "job_folder": self.job_folder,
+            "robot": self.robot, "files": list(self.files),
+            "base_frame": _frame_json(self.base_xyz, self.base_abc),
+            "tool_frame": _frame_json(self.tool_xyz, self.tool_abc),
+            "spindle_rpm": self.spindle_rpm, "flutes": self.flutes,
+            "tool_diameter_mm": _to_file(self.tool_diameter, 1e3), "material": self.material,
+            "model": dict(self.model),
+            "constraints": self.limits.as_json(self.safety_factor),
+            "sections": [s.as_json() for s in self.sections],
+            "cycle_time_s": self.cycle_time, "process_time_s": self.process_time,
+            "solver": self.solver.as_json(), "wall_times_s": dict(self.wall_times),
+            "summary": self.summary,
+        }
+
+    def save(self, folder: str | os.PathLike) -> Plan:
+        """Write ``plan.json`` and ``samples.npz`` into ``folder`` atomically; return the plan with
+        :attr:`path` set to the written ``plan.json``."""
+        p = write_plan(folder, self.document(), self.samples.as_arrays())
+        return replace(self, path=p)
+
+    @classmethod
+    def from_document(cls, doc: dict[str, Any], arrays: dict[str, np.ndarray],
+                      path: Path | None = None) -> Plan:
+        """A plan from its plan.json document and samples arrays (units in the names).
+
+        Raises:
+            PlanFileError: a section or frame is malformed.
+        """
+        where = str(path) if path is not None else "<plan>"
+        secs = []
+        for k, d in enumerate(doc["sections"]):
+            try:
+                secs.append(PlanSection.from_json(d))
+            except (KeyError, TypeError, ValueError) as e:
+                raise PlanFileError(where, f"section {d.get('index', k)} is malformed ({e})") from e
+        base = _frame_si(doc.get("base_frame"), "base", where)
+        tool = _frame_si(doc.get("tool_frame"), "tool", where)
+        known = {f.name for f in fields(cls)}
+        extra = {"job_folder": doc.get("job_folder", doc.get("job_file")),
+                 "files": tuple(doc.get("files") or ()), "spindle_rpm": doc.get("spindle_rpm"),
+                 "flutes": doc.get("flutes"), "material": doc.get("material"),
+                 "tool_diameter": _from_file(_opt(doc.get("tool_diameter_mm")), 1e3),
+                 "model": dict(doc.get("model") or {}), "process_time": _opt(doc.get("process_time_s")),
+                 "wall_times": dict(doc.get("wall_times_s") or {}), "summary": dict(doc.get("summary") or {})}
+        sf = (doc.get("constraints") or {}).get("safety_factor")
+        return cls(method=str(doc["method"]), job_name=str(doc.get("job_name") or "job"),
+                   robot=str(doc.get("robot") or ""), base_xyz=base[0], base_abc=base[1],
+                   tool_xyz=tool[0], tool_abc=tool[1],
+                   limits=Limits.from_json(doc.get("constraints") or {}), sections=tuple(secs),
+                   samples=PlanSamples.from_arrays(arrays), cycle_time=float(doc["cycle_time_s"]),
+                   solver=SolverRecord.from_json(doc.get("solver") or {}),
+                   safety_factor=None if sf is None else float(sf), path=path,
+                   **{k: v for k, v in extra.items() if k in known})
 
 
 def _resolve(path: str | os.PathLike) -> Path:
@@ -131,7 +525,7 @@ def _resolve(path: str | os.PathLike) -> Path:
 
 
 def load_plan(path: str | os.PathLike) -> Plan:
-    """Read ``plan.json`` (or a folder holding one) and its samples table.
+    """Read ``plan.json`` (or a folder holding one) and its samples table into a :class:`Plan`.
 
     Raises:
         PlanFileError: missing file, bad JSON, wrong format, missing keys or arrays.
@@ -151,10 +545,13 @@ def load_plan(path: str | os.PathLike) -> Plan:
     missing = [k for k in _REQUIRED if k not in data]
     if missing:
         raise PlanFileError(str(p), f"missing keys {missing}")
+    if not isinstance(data["sections"], list) or not data["sections"]:
+        raise PlanFileError(str(p), "the plan has no sections")
     for sec in data["sections"]:
-        gone = [k for k in _SECTION_REQUIRED if k not in sec]
+        gone = [k for k in _SECTION_REQUIRED if not isinstance(sec, dict) or k not in sec]
         if gone:
-            raise PlanFileError(str(p), f"section {sec.get('index', '?')} lacks {gone}")
+            raise PlanFileError(str(p), f"section {sec.get('index', '?') if isinstance(sec, dict) else '?'}"
+                                f" lacks {gone}")
     sp = p.parent / data["samples_file"]
     try:
         with np.load(sp, allow_pickle=False) as z:
@@ -166,7 +563,11 @@ def load_plan(path: str | os.PathLike) -> Plan:
         a = samples.get(name)
         if a is None or a.shape != (n, *tail):
             raise PlanFileError(str(sp), f"array {name!r} missing or not of shape {(n, *tail)}")
-    return Plan(path=p, data=data, samples=samples)
+    for name, tail in SAMPLE_EXTRA.items():
+        a = samples.get(name)
+        if a is not None and a.shape != (n, *tail):
+            samples.pop(name)        # an optional array of the wrong shape is not used
+    return Plan.from_document(data, samples, path=p)
 
 
 def _jsonable(v: Any) -> Any:
@@ -188,9 +589,9 @@ def _jsonable(v: Any) -> Any:
 
 def write_plan(folder: str | os.PathLike, data: dict[str, Any],
                samples: dict[str, np.ndarray]) -> Path:
-    """Write ``plan.json`` and ``samples.npz`` into ``folder`` atomically; return the JSON path.
-
-    Non-finite floats become ``null`` (JSON has no NaN).
+    """Write a plan.json document and its ``samples.npz`` arrays (units in the names) into
+    ``folder`` atomically; return the JSON path. :meth:`Plan.save` calls it; tests use it to
+    write synthetic plans. Non-finite floats become ``null`` (JSON has no NaN).
     """
     out = Path(folder)
     n = samples["s_m"].shape[0]

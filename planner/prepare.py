@@ -51,8 +51,9 @@ class Prepared:
 def tool_of(job: Job) -> Tool:
     """The job's cutter: the tool data file with the job's overrides."""
     base = load_tool(job.tool.name)
+    radius = job.to_si().tool_radius
     return Tool(name=base.name, flutes=job.tool.flutes or base.flutes,
-                radius=(job.tool.diameter_mm * 5e-4) if job.tool.diameter_mm else base.radius,
+                radius=radius if radius is not None else base.radius,
                 helix_angle=base.helix_angle)
 
 
@@ -70,30 +71,27 @@ def prepare(job: Job, progress: bool = False) -> Prepared:
         options["rotary"] = job.job.rotary
     toolpaths = tuple(read_toolpath(p, strict=job.job.strict, **options)
                       for p in job.toolpath_files())
-    base = job.base_frame()
-    path = sample_toolpath(list(toolpaths), base, job.path.chord_tol_mm * 1e-3,
-                           job.path.step_max_mm * 1e-3)
-    seed = (np.radians(job.kinematics.seed_joints_deg)
-            if job.kinematics.seed_joints_deg is not None else None)
+    si = job.to_si()
+    base = si.base
+    path = sample_toolpath(list(toolpaths), base, si.chord_tol, si.step_max)
     fixed = job.kinematics.tool_rotation == "fixed"
-    kin = solve_path(robot, path, job.tool_frame(), IKOptions(
-        seed=seed, choose_for_stiffness=job.kinematics.choose_for_stiffness and not fixed,
-        tool_rotation=np.radians(job.kinematics.tool_rotation_deg) if fixed else None),
+    kin = solve_path(robot, path, si.tool, IKOptions(
+        seed=si.seed_joints, choose_for_stiffness=job.kinematics.choose_for_stiffness and not fixed,
+        tool_rotation=si.tool_rotation if fixed else None),
         progress=progress)
     eng = job.engagement
     feed_dir_wp = path.feed_dir_wp
     if eng.source == "fixed":
-        a_e = (2 * tool.radius if eng.milling == "slot" else eng.ae_mm * 1e-3)
-        e = fixed_engagement(len(path), a_e, eng.ap_mm * 1e-3, eng.milling, feed_dir_wp,
+        a_e = (2 * tool.radius if eng.milling == "slot" else si.a_e)
+        e = fixed_engagement(len(path), a_e, si.a_p, eng.milling, feed_dir_wp,
                              path.tool_axis_wp, path.cutting, tool_radius=tool.radius)
     else:
-        st = eng.stock
-        if st.box_mm is not None:
-            x0, y0, x1, y1 = (v * 1e-3 for v in st.box_mm)
-            stock = Stock.box(x0, y0, x1, y1, st.z_bottom_mm * 1e-3, st.z_top_mm * 1e-3)
+        z0, z1 = si.stock_z  # type: ignore[misc]
+        if si.stock_box is not None:
+            x0, y0, x1, y1 = si.stock_box
+            stock = Stock.box(x0, y0, x1, y1, z0, z1)
         else:
-            stock = Stock([(x * 1e-3, y * 1e-3) for x, y in st.outline_mm],
-                          st.z_bottom_mm * 1e-3, st.z_top_mm * 1e-3)
+            stock = Stock(si.stock_outline, z0, z1)
         e = stock_engagement(path.position_wp, path.tool_axis_wp, path.cutting, tool.radius,
                              stock)
     rot = base[:3, :3]

@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import math
 import re
+from dataclasses import replace
 from importlib import resources
 from pathlib import Path
 
@@ -165,7 +166,7 @@ def _check_export(plan_path: Path, paths: list[Path], controller: str, compensat
     tp = read_krl(paths[0])
     assert len(tp.moves) == len(prog.moves)
     s = plan.samples
-    pos = s["position_wp_m"] - (np.nan_to_num(s["deflection_wp_m"]) if compensate else 0.0)
+    pos = s.position_wp - (np.nan_to_num(s.deflection_wp) if compensate else 0.0)
     pos_mm = pos * 1e3
     dat = "".join(p.read_text(encoding="ascii") for p in paths if p.suffix == ".dat")
     decl = {m.group(1): float(m.group(2))
@@ -177,7 +178,7 @@ def _check_export(plan_path: Path, paths: list[Path], controller: str, compensat
         assert got.kind == (MoveKind.ARC_CCW if want.kind == "CIRC" else MoveKind.LINEAR)
         # the move's target is plan sample i
         np.testing.assert_allclose(got.end * 1e3, pos_mm[i], atol=POS_TOL_MM, rtol=0)
-        r = abc_to_matrix(*got.extra["abc_deg"]).T @ abc_to_matrix(*s["abc_wp_deg"][i])
+        r = abc_to_matrix(*got.extra["abc_deg"]).T @ abc_to_matrix(*np.degrees(s.abc_wp[i]))
         assert math.degrees(math.acos(min(1.0, (np.trace(r) - 1) / 2))) < ANG_TOL_DEG
         # every sample the move absorbed lies on it
         for j in range(prev_target + 1, i):
@@ -185,12 +186,11 @@ def _check_export(plan_path: Path, paths: list[Path], controller: str, compensat
         covered[prev_target + 1:i + 1] = True
         prev_target = i
         # feeds: exactly the .dat value; the plan's rounded down to the resolution
-        k = int(s["section"][i])
+        k = int(s.section[i])
         assert got.feed == decl[names[k]]
         sec = plan.sections[k]
-        if sec["feed_mm_s"] is not None:
-            plan_feed = sec["feed_mm_s"] * 1e-3
-            assert 0 <= plan_feed - got.feed < FEED_RESOLUTION_M_S * 1.0001
+        if math.isfinite(sec.feed):
+            assert 0 <= sec.feed - got.feed < FEED_RESOLUTION_M_S * 1.0001
     assert covered.all()
     return {"tp": tp, "prog": prog, "decl": decl}
 
@@ -233,7 +233,7 @@ def test_compensation_mirrors_the_deflection(tmp_path) -> None:
     # compensated arcs are no longer circles: no CIRC, all LINs
     assert {m.kind for m in facts["prog"].moves} == {"LIN"}
     targets = np.array([m.target[:3] for m in facts["prog"].moves])
-    plain = load_plan(plan).samples["position_wp_m"] * 1e3
+    plain = load_plan(plan).samples.position_wp * 1e3
     assert facts["prog"].sample_of_move == tuple(range(len(plain)))
     assert np.abs(targets - plain).max() > 0.03                # it did move the path
     np.testing.assert_allclose(targets[:4], plain[:4], atol=1e-4)   # rapids (NaN) stay
@@ -267,11 +267,12 @@ def test_long_plan_pages_and_round_trips(tmp_path) -> None:
 
 def test_demo_job_round_trip(tmp_path) -> None:
     from planner.job import load_job
-    from planner.plan import plan_job, write_plan_outputs
+    from planner.outputs import write_plan_outputs
+    from planner.plan import plan_job
 
     job = load_job(str(resources.files("planner").joinpath("data/demo/demo_job.toml")))
     res = plan_job(job)
-    plan = write_plan_outputs(res, tmp_path / "plan", report=False)["plan"]
+    plan = write_plan_outputs(res, tmp_path / "plan", report=False).files["plan"]
     for controller, hook in (("krc4", "rsi"), ("krc2", "kvp")):
         paths = export_plan(plan, tmp_path / controller, controller=controller,
                             override_hook=hook)
@@ -293,10 +294,12 @@ def test_nan_feed_names_the_section_and_writes_nothing(tmp_path) -> None:
     out = tmp_path / "krl"
     export_plan(plan, out)
     before = {p.name: p.read_bytes() for p in out.iterdir()}
-    p = load_plan(plan)
-    p.data["sections"][-1]["feed_mm_s"] = None                  # NaN in the last section
-    write_plan(tmp_path / "plan", {k: v for k, v in p.data.items()
-                                   if k not in ("format", "version", "samples_file")}, p.samples)
+    doc = json.loads(plan.read_text(encoding="utf-8"))
+    doc["sections"][-1]["feed_mm_s"] = None                     # NaN in the last section
+    with np.load(plan.parent / "samples.npz") as z:
+        arrays = {k: z[k] for k in z.files}
+    write_plan(tmp_path / "plan", {k: v for k, v in doc.items()
+                                   if k not in ("format", "version", "samples_file")}, arrays)
     with pytest.raises(KrlError, match="section 7 feed.*not a number"):
         export_plan(plan, out)
     assert {q.name: q.read_bytes() for q in out.iterdir()} == before
@@ -305,9 +308,10 @@ def test_nan_feed_names_the_section_and_writes_nothing(tmp_path) -> None:
 def test_bad_sections_are_refused(tmp_path) -> None:
     plan = _demo_like(tmp_path / "plan", np.random.default_rng(SEED))
     p = load_plan(plan)
-    p.data["sections"][2]["sample_start"] += 1
+    secs = list(p.sections)
+    secs[2] = replace(secs[2], sample_start=secs[2].sample_start + 1)
     with pytest.raises(ExportError, match="partition the samples"):
-        plan_to_krl(p)
+        plan_to_krl(replace(p, sections=tuple(secs)))
 
 
 # --------------------------------------------------------------------------- CLI

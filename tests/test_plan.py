@@ -19,7 +19,8 @@ from planner.cli import main
 from planner.ceilings import CONSTRAINTS
 from planner.job import parse_job
 from planner.partition import fastest_split, split_time
-from planner.plan import PlanInfeasibleError, plan_prepared, write_plan_outputs
+from planner.outputs import write_plan_outputs
+from planner.plan import PlanInfeasibleError, plan_prepared
 from planner.plan_file import BINDINGS, SAMPLE_ARRAYS, load_plan
 from planner.prepare import prepare
 from planner.sections import CUT, RAPID, kind_runs, step_lengths
@@ -217,10 +218,12 @@ def test_timing_never_exceeds_the_plan_and_rapids_are_timed(demo_plans):
 
 def test_plan_files_follow_the_contract(demo_plans, tmp_path):
     res = demo_plans["optimize"]
-    written = write_plan_outputs(res, tmp_path)
+    written = write_plan_outputs(res, tmp_path).files
     plan = load_plan(tmp_path)
     assert plan.method == "optimize"
-    doc = plan.data
+    doc = json.loads((tmp_path / "plan.json").read_text(encoding="utf-8"))
+    with np.load(tmp_path / "samples.npz") as z:
+        arrays = {k: z[k] for k in z.files}
     for key in ("method", "sections", "cycle_time_s", "constraints", "solver", "samples_file"):
         assert key in doc
     assert set(doc["solver"]) >= {"status", "iterations", "build_time_s", "solve_time_s"}
@@ -231,9 +234,10 @@ def test_plan_files_follow_the_contract(demo_plans, tmp_path):
     assert doc["cycle_time_s"] == pytest.approx(res.cycle_time)
     n = len(res.prep.path)
     for name, tail in SAMPLE_ARRAYS.items():
-        assert plan.samples[name].shape == (n, *tail)
-    cut = plan.samples["kind"] == CUT
-    assert np.all(np.isfinite(plan.samples["force_N"][cut]))
+        assert arrays[name].shape == (n, *tail)
+    cut = arrays["kind"] == CUT
+    assert np.all(np.isfinite(arrays["force_N"][cut]))
+    assert np.all(np.isfinite(plan.samples.force[plan.samples.kind == CUT]))
     html = written["report"].read_text(encoding="utf-8")
     assert html.count("data:image/png;base64,") == 2
     assert "<img" in html and "src=\"http" not in html
@@ -245,15 +249,15 @@ def test_pose_in_base_is_the_ik_pose(demo_plans, tmp_path):
     res = demo_plans["optimize"]
     write_plan_outputs(res, tmp_path, report=False)
     s = load_plan(tmp_path).samples
-    from planner.job import frame_matrix
+    from robot_io.krl.frames import frame_from_mm_deg as frame_matrix
 
     job = res.prep.job
     base = job.base_frame()
     tool = job.tool_frame()
     robot = res.prep.robot
     for k in (0, 100, 500, len(res.prep.path) - 1):
-        t_wp = frame_matrix(s["position_wp_m"][k] * 1e3, s["abc_wp_deg"][k])
-        p, rot = robot.pose_function(s["q_rad"][k], np.zeros(3))
+        t_wp = frame_matrix(s.position_wp[k] * 1e3, np.degrees(s.abc_wp[k]))
+        p, rot = robot.pose_function(s.q[k], np.zeros(3))
         flange = np.eye(4)
         flange[:3, :3] = np.asarray(rot)
         flange[:3, 3] = np.asarray(p).reshape(3)

@@ -8,7 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from planner.plan import plan_job, write_plan_outputs
+from planner.outputs import write_plan_outputs
+from planner.plan import plan_job
 from planner.report import find_browser, render_screenshot
 
 pytestmark = pytest.mark.skipif(find_browser() is None,
@@ -21,7 +22,7 @@ def test_rendered_report_shows_the_plots(tmp_path):
     from planner.job import load_job
 
     job = load_job(str(resources.files("planner").joinpath("data/demo/demo_job.toml")))
-    written = write_plan_outputs(plan_job(job), tmp_path)
+    written = write_plan_outputs(plan_job(job), tmp_path).files
     shot = render_screenshot(written["report"], tmp_path / "report.png", height=2600)
     import matplotlib.image as mpimg
 

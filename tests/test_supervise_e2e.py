@@ -20,7 +20,7 @@ import pytest
 from _plans import make_plan
 
 from planner.cli import main
-from planner.cli.supervise import simulated_sigma
+from planner.supervisor.session import simulated_sigma
 from planner.supervisor.event_log import EventLog
 from planner.plan_file import load_plan
 from planner.supervisor.sim_cell import SimCell
@@ -89,7 +89,7 @@ def test_chatter_detected_override_lowered_chatter_gone(tmp_path, robot):
 def test_feed_step_without_chatter_gives_no_alarm(tmp_path):
     sup, rep, cell, hist, link, _ = _run(tmp_path, STEP, "rsi", CutScenario(), 1.8)
     tr = cell.cut.truth.arrays()
-    assert tr["section"][-1] == 1 and tr["feed_mm_s"][-1] == pytest.approx(4.0, rel=0.02)
+    assert tr["section"][-1] == 1 and tr["feed"][-1] == pytest.approx(4e-3, rel=0.02)
     assert tr["chatter_N"].max() == 0.0
     assert not sup.episodes and rep.status_counts.get("alarm", 0) == 0, rep.status_counts
     assert rep.last.override == pytest.approx(100.0)

@@ -6,9 +6,10 @@ import argparse
 from pathlib import Path
 
 from planner.export import krl_summary, plan_to_krl
+from planner.outputs import KrlOptions
 from robot_io.krl import CONTROLLERS, OVERRIDE_HOOKS, write_krl
 
-__all__ = ["add_krl_flags", "export_from_args", "register", "run"]
+__all__ = ["add_krl_flags", "export_from_args", "krl_options", "register", "run"]
 
 
 def add_krl_flags(p: argparse.ArgumentParser, with_output: bool = True) -> None:
@@ -35,11 +36,17 @@ def add_krl_flags(p: argparse.ArgumentParser, with_output: bool = True) -> None:
     g.add_argument("--advance", type=int, default=3, help="$ADVANCE, 1..5 (default 3)")
 
 
+def krl_options(args: argparse.Namespace) -> KrlOptions:
+    """The KRL options the flags ask for."""
+    return KrlOptions(name=args.name, controller=args.controller,
+                      compensate=args.compensate_deflection, override_hook=args.override_hook,
+                      base_index=args.base_index, tool_index=args.tool_index,
+                      apo_cdis_mm=args.apo_cdis_mm, advance=args.advance)
+
+
 def export_from_args(plan: object, outdir: str, args: argparse.Namespace) -> list[Path]:
     """Export ``plan`` (a Plan or path) with the KRL flags of ``args``; print what was written."""
-    prog = plan_to_krl(plan, args.name, args.controller, args.compensate_deflection,  # type: ignore[arg-type]
-                       args.override_hook, args.base_index, args.tool_index, args.apo_cdis_mm,
-                       args.advance)
+    prog = plan_to_krl(plan, **krl_options(args).kwargs())  # type: ignore[arg-type]
     summary = krl_summary(prog)
     paths = write_krl(prog.spec, prog.sections, prog.moves, outdir, prog.notes)
     print(f"KRL program {prog.spec.name} for {CONTROLLERS[prog.spec.controller].label}: "

@@ -4,22 +4,14 @@ from __future__ import annotations
 
 import argparse
 import json
-from importlib import resources
 from pathlib import Path
 
 from models.errors import InputError
+from planner.cli.export import krl_options
+from planner.demo import demo_job_file
 from planner.plan import METHODS, PlanResult
 
-__all__ = ["DEMO_JOB", "register", "run_plan", "section_table"]
-
-#: The bundled demo job (package data).
-DEMO_JOB = "data/demo/demo_job.toml"
-
-
-def demo_job_path() -> Path:
-    """Path of the bundled demo job file."""
-    return Path(str(resources.files("planner").joinpath(DEMO_JOB)))
-
+__all__ = ["register", "section_table"]
 
 def section_table(res: PlanResult, limit: int = 40) -> str:
     """The sections as a readable table (the first ``limit`` rows, then a count)."""
@@ -41,36 +33,22 @@ def section_table(res: PlanResult, limit: int = 40) -> str:
     return "\n".join(out)
 
 
-def run_plan(job_path: Path, out: Path, method: str | None, safety_factor: float | None,
-             progress: bool = True) -> tuple[PlanResult, dict]:
-    """Plan a job file and write its outputs; the library call behind ``cctmill plan``."""
-    from planner.job import load_job
-    from planner.plan import plan_job, write_plan_outputs
-
-    job = load_job(job_path)
-    res = plan_job(job, method=method, safety_factor=safety_factor, progress=progress)
-    written = write_plan_outputs(res, out)
-    return res, written
-
-
 def _cmd_plan(args: argparse.Namespace) -> int:
     if args.demo == (args.job is not None):
         raise InputError("plan", "give a JOB.toml or --demo (not both)")
-    job = demo_job_path() if args.demo else Path(args.job)
+    job = demo_job_file() if args.demo else Path(args.job)
     out = Path(args.output)
     if args.safety_factor is not None and not args.safety_factor >= 1.0:
         raise InputError("--safety-factor", "must be >= 1 (f_real = f_max / safety factor)")
-    res, written = run_plan(job, out, args.method, args.safety_factor, progress=not args.json)
-    if args.krl:
-        from planner.export import export_plan
+    from planner.job import load_job
+    from planner.outputs import run_plan_job
 
-        written["krl"] = export_plan(
-            written["plan"], out, name=args.name, controller=args.controller,
-            compensate=args.compensate_deflection, override_hook=args.override_hook,
-            base_index=args.base_index, tool_index=args.tool_index,
-            apo_cdis_mm=args.apo_cdis_mm, advance=args.advance)
+    krl = krl_options(args) if args.krl else None
+    outputs = run_plan_job(load_job(job), out, args.method, args.safety_factor, krl=krl,
+                           progress=not args.json)
+    res, written = outputs.result, outputs.files
     if args.json:
-        doc = json.loads(written["plan"].read_text(encoding="utf-8"))
+        doc = json.loads(outputs.plan.path.read_text(encoding="utf-8"))  # type: ignore[union-attr]
         doc.pop("sections", None)
         doc["written"] = {k: [str(p) for p in v] if isinstance(v, list) else str(v)
                           for k, v in written.items()}
@@ -106,7 +84,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="thesis method: f_real = f_max / safety factor (default from the job, 1.1)")
     p.add_argument("--krl", action="store_true", help="also write the KUKA KRL program "
                                                       "(the KRL flags below, as cctmill export)")
-    from planner.cli.export import add_krl_flags
+    from planner.cli.export import add_krl_flags  # noqa: I001 - the KRL flags, shared
 
     add_krl_flags(p, with_output=False)
     p.add_argument("--json", action="store_true", help="print the plan summary as JSON")

@@ -27,7 +27,7 @@ __all__ = ["register"]
 
 def register(sub) -> None:
     """Add the ``simulate`` subcommand to ``sub`` (argparse sub-parsers)."""
-    from planner.cli import _add_point_flags
+    from planner.cli._common import add_point_flags
 
     p = sub.add_parser(
         "simulate", help="time-domain simulation of the cut on the flexible arm (forces, chatter)",
@@ -35,7 +35,7 @@ def register(sub) -> None:
                     "with the arm's mass and stiffness at the pose, a helical cutter in axial "
                     "slices and the equilibrium chip thickness (SPEC §6). The verdict "
                     "stable_predicted comes from --criterion (default floquet).")
-    _add_point_flags(p, with_feed=True)
+    add_point_flags(p, with_feed=True)
     g = p.add_argument_group("simulation")
     g.add_argument("--duration-s", type=float, default=2.0, help="simulated time [s] (default 2)")
     g.add_argument("--fs-hz", type=float, default=5000.0,
@@ -86,9 +86,9 @@ def _check(args: argparse.Namespace) -> None:
 
 def _plot(sim, path: str) -> None:
     """Resultant force against time, and its spectrum over the analysis window."""
-    from planner.report.plots import _figure, _save
+    from planner.report.plots import new_figure, save_figure
 
-    plt, fig = _figure(figsize=(9, 6))
+    plt, fig = new_figure(figsize=(9, 6))
     ax1, ax2 = fig.add_subplot(2, 1, 1), fig.add_subplot(2, 1, 2)
     ax1.plot(sim.time, np.linalg.norm(sim.force, axis=1), lw=0.6)
     ax1.axvspan(sim.window_start, sim.time[-1], color="0.9", label="analysis window")
@@ -99,17 +99,17 @@ def _plot(sim, path: str) -> None:
     ax2.set_xlim(0, min(sim.spectrum_hz[-1], 10.0 / sim.tooth_period))
     ax2.set_xlabel("frequency [Hz]")
     ax2.set_ylabel("|F| amplitude [N]")
-    _save(plt, fig, f"F_peak {sim.f_peak:.1f} N, F_PV {sim.f_pv:.1f} N, growth "
+    save_figure(plt, fig, f"F_peak {sim.f_peak:.1f} N, F_PV {sim.f_pv:.1f} N, growth "
           f"{sim.growth_rate:+.2f} 1/s ({'iterated' if sim.iterate else 'first iteration'}, "
           f"regeneration {'on' if sim.regeneration else 'off'})", path)
 
 
 def run(args: argparse.Namespace) -> int:
     """Run ``cctmill simulate``; print JSON or a summary."""
-    from planner.cli import _setup
+    from planner.cli._common import point_setup
 
     _check(args)
-    model, q, cut = _setup(args)
+    model, q, cut = point_setup(args)
     tool = load_tool(args.tool)
     model.helix_angle = tool.helix_angle
     model.damping_ratio = args.damping_ratio

@@ -1,4 +1,4 @@
-"""``cctmill supervise``: run the online chatter supervisor against a signal and a controller.
+"""``cctmill supervise``: the online chatter supervisor against a signal and a controller.
 
 ::
 
@@ -6,41 +6,27 @@
                       --robot sim|kvp://HOST:PORT|rsi://BIND_HOST:PORT
                       [--log events.jsonl] [--fs-hz N] [--alpha-f 6e-5] [--duration-s S] ...
 
-- ``--signal FILE`` replays a recorded CSV/NPY in real time; ``udp://HOST:PORT`` binds a UDP
-  sample-stream receiver (format in :mod:`robot_io.signals.udp`); ``sim`` simulates the cut
-  (:mod:`planner.supervisor.sim_cut`) whose feed follows the override the controller applies.
-- ``--robot sim`` starts a simulated controller in-process and talks to it over loopback
-  (``--sim-protocol kvp``: KukaVarProxy server + client, the default; ``rsi``: RSI controller +
-  server); ``kvp://HOST:PORT`` connects to a KukaVarProxy; ``rsi://BIND_HOST:PORT`` binds the RSI
-  server the controller sends to.
-- σ of the stable band: ``--sigma``, else from a simulated stable cut (``--signal sim``), else
-  learned from the first ``--stable-s`` seconds of the signal (the user vouches they are stable).
-
-Prints a summary (episodes with detection delay and settling time when simulated, step latency
-against the controller cycle, link and source counters) as text or ``--json``.
+A thin layer over :func:`planner.supervisor.session.supervise` (what the names mean is documented
+there): parses the flags into a :class:`~planner.supervisor.session.SessionConfig` and a
+:class:`~planner.supervisor.sim_cut.CutScenario`, runs, prints the summary as text or ``--json``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import math
-import time
-from typing import Any
-from urllib.parse import urlsplit
-
-import numpy as np
 
 from models.errors import InputError
-from planner.supervisor.event_log import EventLog
 from planner.plan_file import load_plan
-from planner.supervisor.sim_cut import CutScenario, SimulatedCut
-from planner.supervisor.loop import VirtualClock, run_loop
-from planner.supervisor.metrics import episode_metrics
-from planner.supervisor.plot import RunTrace, plot_run
-from planner.supervisor import Supervisor, SupervisorConfig
+from planner.supervisor.policy import SupervisorConfig
+from planner.supervisor.session import SessionConfig, SessionSummary, supervise
+from planner.supervisor.sim_cut import CutScenario
 
-__all__ = ["register", "run", "simulated_sigma", "supervise"]
+__all__ = ["register", "run"]
+
+#: Flags of the library's fields, for messages that name a field.
+_FLAGS = {"cycle": "--cycle-ms", "duration": "--duration-s", "fs_hz": "--fs-hz", "sigma": "--sigma",
+          "robot": "--robot", "signal": "--signal", "sim_protocol": "--sim-protocol"}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -88,13 +74,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
-def _endpoint(text: str, scheme: str, flag: str) -> tuple[str, int]:
-    u = urlsplit(text)
-    if u.scheme != scheme or not u.hostname or u.port is None:
-        raise InputError(flag, f"{text!r}: expected {scheme}://HOST:PORT")
-    return u.hostname, int(u.port)
-
-
 def _scenario(args: argparse.Namespace) -> CutScenario:
     loss = None
     if args.signal_loss_s:
@@ -112,221 +91,28 @@ def _scenario(args: argparse.Namespace) -> CutScenario:
                        margin_offset_N_per_m=args.margin_offset_n_per_m)
 
 
-def simulated_sigma(plan, fs_hz: float, scenario: CutScenario, config: SupervisorConfig,
-                    duration_s: float = 2.0) -> float:
-    """σ of the band in a simulated stable cut (no onset, no loss) at 100 % override, from the
-    start of the plan's first cut section (air and rapids carry no cutting force)."""
-    clk = VirtualClock()
-    stable = CutScenario(**{**scenario.__dict__, "onset_s": None, "loss_s": None,
-                            "seed": scenario.seed + 1})
-    cuts = [s for s in plan.sections if s.get("kind", "cut") == "cut"]
-    start = float(cuts[0]["s_start_m"]) if cuts else 0.0
-    cut = SimulatedCut(plan, lambda: 100.0, fs_hz, stable, clock=clk, start_s=start)
-    ts, ys = [], []
-    for _ in range(int(duration_s / 0.01)):
-        clk.sleep(0.01)
-        t, y = cut.generate()
-        ts.append(t)
-        ys.append(y)
-    probe = Supervisor(plan, fs_hz, sigma=1.0, config=config)
-    return probe.detector.learn(np.concatenate(ys))
+def session_config(args: argparse.Namespace) -> SessionConfig:
+    """The session settings the flags ask for (SI)."""
+    return SessionConfig(
+        supervisor=SupervisorConfig(alpha_f=args.alpha_f, floor_pct=args.floor_pct,
+                                    safe_pct=args.safe_pct),
+        cycle=args.cycle_ms * 1e-3, duration=args.duration_s, fs_hz=args.fs_hz, sigma=args.sigma,
+        learn=args.stable_s, start=args.start_mm * 1e-3, log=args.log, plot=args.plot,
+        signal_column=args.signal_column, sim_protocol=args.sim_protocol, fast=args.fast)
 
 
 def run(args: argparse.Namespace) -> int:
-    """``cctmill supervise``: :func:`supervise`, then print its summary (text or JSON)."""
-    summary = supervise(args)
-    if args.json:
-        print(json.dumps(summary, indent=2))
-    else:
-        print(_text(summary))
-    return 0
-
-
-def supervise(args: argparse.Namespace) -> dict[str, Any]:
-    """Run the supervisor as the parsed ``cctmill supervise`` flags say; return the summary."""
-    if not args.cycle_ms > 0:
-        raise InputError("--cycle-ms", "must be positive")
-    if args.duration_s is not None and not args.duration_s > 0:
-        raise InputError("--duration-s", "must be positive")
-    if args.fs_hz is not None and not (math.isfinite(args.fs_hz) and args.fs_hz > 0):
-        raise InputError("--fs-hz", "must be positive")
+    """``cctmill supervise``: run the session, print its summary (text or JSON)."""
     plan = load_plan(args.plan)
-    cfg = SupervisorConfig(alpha_f=args.alpha_f, floor_pct=args.floor_pct, safe_pct=args.safe_pct)
-    cycle_s = args.cycle_ms * 1e-3
-    closers: list[Any] = []
-    cell = None
-    cut: SimulatedCut | None = None
-    before_step = None
-    clock, sleep = time.monotonic, time.sleep
-    scenario = _scenario(args)
-    fs = args.fs_hz
     try:
-        sim_signal = args.signal == "sim"
-        if sim_signal and args.robot == "sim":
-            from planner.supervisor.sim_cell import SimCell
-
-            fs = fs or 10_000.0
-            cell = SimCell(plan, args.sim_protocol, fs, scenario, cycle_s=cycle_s,
-                           start_s=args.start_mm * 1e-3)
-            closers.append(cell)
-            source, link, cut, before_step = cell.source, cell.link, cell.cut, cell.daq
-        else:
-            link = _make_link(args, cycle_s, closers)
-            if sim_signal:
-                fs = fs or 10_000.0
-                if args.fast:
-                    vc = VirtualClock()
-                    clock, sleep = vc, vc.sleep
-
-                def applied() -> float:
-                    v = link.read_override()
-                    return 100.0 if v is None else float(v)
-
-                cut = SimulatedCut(plan, applied, fs, scenario, clock=clock, start_s=args.start_mm * 1e-3)
-                source = cut
-            else:
-                source, fs = _make_source(args, fs, closers)
-        if args.sigma is not None:
-            if not args.sigma > 0:
-                raise InputError("--sigma", "must be positive")
-            sigma: float | None = args.sigma
-        elif sim_signal:
-            sigma = simulated_sigma(plan, fs, scenario, cfg)
-        else:
-            sigma = None
-        log = EventLog(args.log)
-        closers.append(log)
-        sup = Supervisor(plan, fs, sigma=sigma, config=cfg, log=log, learn_s=args.stable_s,
-                         start_s=args.start_mm * 1e-3)
-        duration = args.duration_s
-        if duration is None:
-            duration = (6.0 if sim_signal else getattr(source, "duration_s", None) or math.inf)
-        trace = RunTrace()
-        try:
-            rep = run_loop(sup, source, link, duration, cycle_s, clock=clock, sleep=sleep,
-                           before_step=before_step, on_step=trace)
-        except KeyboardInterrupt:
-            rep = None
-        log.flush()
-        summary = _summary(sup, rep, source, link, cut, scenario, cycle_s, args)
-        if args.plot:
-            plot_run(trace, args.plot, cut.truth if cut is not None else None,
-                     title=f"cctmill supervise: {args.signal} -> {args.robot}, level "
-                           f"{sup.level.level} ({sup.level.band_hz[0]:.3g}-{sup.level.band_hz[1]:.3g} Hz)")
-            summary["plot"] = args.plot
-    finally:
-        for c in reversed(closers):
-            try:
-                c.close()
-            except Exception:  # noqa: BLE001 - closing must not hide the result
-                pass
-    return summary
-
-
-def _make_link(args: argparse.Namespace, cycle_s: float, closers: list):
-    if args.robot == "sim":
-        if args.sim_protocol == "rsi":
-            from robot_io.links.rsi import RsiServer
-            from robot_io.links.rsi_sim import RsiSimController
-
-            server = RsiServer(cycle_ms=int(round(cycle_s * 1000)))
-            closers.append(server)
-            ctl = RsiSimController(server.address, cycle_s=cycle_s).start()
-            closers.append(type("_Stop", (), {"close": lambda self: ctl.stop()})())
-            return server
-        from robot_io.links.kvp import KvpClient
-        from robot_io.links.kvp_sim import KvpSimServer
-
-        srv = KvpSimServer().start()
-        closers.append(type("_Stop", (), {"close": lambda self: srv.stop()})())
-        client = KvpClient(*srv.address, timeout=0.1)
-        closers.append(client)
-        return client
-    if args.robot.startswith("kvp://"):
-        from robot_io.links.kvp import KvpClient
-
-        client = KvpClient(*_endpoint(args.robot, "kvp", "--robot"))
-        closers.append(client)
-        return client
-    if args.robot.startswith("rsi://"):
-        # the RSI server of a real cell runs in its own process: its replies are due inside the
-        # controller's cycle whatever this process's GIL is doing
-        from robot_io.links.rsi_process import RsiProcessServer
-
-        host, port = _endpoint(args.robot, "rsi", "--robot")
-        server = RsiProcessServer(host, port, cycle_ms=int(round(cycle_s * 1000)))
-        closers.append(server)
-        return server
-    raise InputError("--robot", f"{args.robot!r}: use sim, kvp://HOST:PORT or rsi://BIND_HOST:PORT")
-
-
-def _make_source(args: argparse.Namespace, fs: float | None, closers: list):
-    if args.signal.startswith("udp://"):
-        from robot_io.signals.udp import UdpSignalSource
-
-        host, port = _endpoint(args.signal, "udp", "--signal")
-        src = UdpSignalSource(host, port)
-        closers.append(src)
-        if fs is None:
-            deadline = time.monotonic() + 5.0
-            while src.fs_hz <= 0 and time.monotonic() < deadline:
-                time.sleep(0.005)
-                src.read(0)  # drains datagrams into the backlog; keeps the samples
-            if src.fs_hz <= 0:
-                raise InputError("--fs-hz", f"no sample datagram on {host}:{port} within 5 s; start the "
-                                 "stream first or give the rate")
-            fs = src.fs_hz
-        return src, fs
-    from robot_io.signals.replay import ReplaySource
-
-    src = ReplaySource.from_file(args.signal, fs, column=args.signal_column, realtime=True)
-    return src, src.fs_hz
-
-
-def _ms(x: float | None) -> float | None:
-    return None if x is None else round(1e3 * x, 2)
-
-
-def _summary(sup: Supervisor, rep, source, link, cut, scenario, cycle_s, args) -> dict:
-    ch = sup.level
-    out: dict[str, Any] = {
-        "plan": str(sup.plan.path), "signal": args.signal, "robot": args.robot,
-        "fs_hz": sup.fs_hz, "level": ch.level, "band_hz": list(ch.band_hz), "chatter_hz": ch.chatter_hz,
-        "tooth_hz": ch.tooth_hz, "level_reason": ch.reason, "L_c": sup.detector.l_c,
-        "sigma": sup.detector.sigma, "ucl": sup.detector.ucl if sup.detector.sigma else None,
-        "counts": dict(sup.counts), "log": args.log, "log_dropped": sup.log.dropped,
-    }
-    if rep is not None:
-        lat = rep.step_latency_s
-        out.update({
-            "steps": rep.steps, "duration_s": rep.duration_s, "status_counts": rep.status_counts,
-            "final_override": rep.last.override if rep.last else None,
-            "step_latency_ms": {"p50": _ms(float(np.percentile(lat, 50))) if lat.size else None,
-                                "p99": _ms(float(np.percentile(lat, 99))) if lat.size else None,
-                                "max": _ms(float(lat.max())) if lat.size else None,
-                                "cycle": _ms(cycle_s)},
-            "overruns": rep.overruns, "link_writes": rep.link_writes,
-            "link_failures": rep.link_failures, "link_downs": rep.link_downs,
-        })
-    out["link_stats"] = dict(link.stats.__dict__)
-    out["source_stats"] = source.stats.as_dict()
-    eps = []
-    metrics = []
-    if cut is not None and cut.start_clock_s is not None:
-        f_c = ch.chatter_hz
-        metrics = episode_metrics(sup, cut.truth, f_c, scenario.onset_s, cut.start_clock_s)
-    for k, ep in enumerate(sup.episodes):
-        e: dict[str, Any] = {"start_s": ep.start_s, "section": ep.section, "direction": ep.direction,
-                             "override_start": ep.override_start, "override_min": ep.override_min,
-                             "end_s": ep.end_s}
-        if k < len(metrics):
-            m = metrics[k]
-            e.update({"detection_delay_ms": _ms(m.detection_delay_s),
-                      "onset_to_alarm_ms": _ms(m.onset_to_alarm_s),
-                      "settling_ms": _ms(m.settling_s), "quiet_ms": _ms(m.quiet_s)})
-        eps.append(e)
-    out["episodes"] = eps
-    return out
+        summary = supervise(plan, args.signal, args.robot, session_config(args), _scenario(args))
+    except InputError as e:
+        if e.field in _FLAGS:   # a library field: say it as the flag the user typed
+            raise InputError(_FLAGS[e.field], str(e).split(": ", 1)[-1]) from None
+        raise
+    doc = summary.as_json()
+    print(json.dumps(doc, indent=2) if args.json else _text(doc))
+    return 0
 
 
 def _g(x: float | None) -> str:

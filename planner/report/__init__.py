@@ -14,8 +14,10 @@ from planner.report.html import (
     write_report,
 )
 from planner.report.plots import (
+    new_figure,
     plot_characteristic,
     plot_path_kinematics,
+    save_figure,
 )
 from planner.report.tables import (
     analysis_json,
@@ -31,11 +33,13 @@ __all__ = [
     "analysis_table",
     "characteristic_table",
     "find_browser",
+    "new_figure",
     "plot_along_path",
     "plot_characteristic",
     "plot_characteristics",
     "plot_path_kinematics",
     "render_screenshot",
+    "save_figure",
     "tightest_sections",
     "write_report",
 ]

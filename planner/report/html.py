@@ -20,7 +20,7 @@ import numpy as np
 
 from models.errors import CctmillError
 from planner._atomic import atomic_path, write_text_atomic
-from planner.report.plots import _figure, _save
+from planner.report.plots import new_figure, save_figure
 
 __all__ = [
     "BINDING_COLOURS",
@@ -58,7 +58,7 @@ def plot_along_path(res, path: str | os.PathLike) -> Path:
     idx = res.model.index
     ev = res.evaluation
     rows = res.section_rows
-    plt, fig = _figure(figsize=(11.0, 13.0), dpi=100)
+    plt, fig = new_figure(figsize=(11.0, 13.0), dpi=100)
     axes = fig.subplots(6, 1, sharex=True)
     ax = axes[0]
     _bands(ax, rows)
@@ -127,7 +127,7 @@ def plot_along_path(res, path: str | os.PathLike) -> Path:
     ax.set_yscale("log")
     ax.set_ylim(1e-3, 150)
     ax.legend(fontsize=7, ncol=6, loc="lower right")
-    return _save(plt, fig, f"{prep.job.job.name}: {res.method} plan, cycle {res.cycle_time:.1f} s "
+    return save_figure(plt, fig, f"{prep.job.job.name}: {res.method} plan, cycle {res.cycle_time:.1f} s "
                  "(colour bands: what binds each section)", path)
 
 
@@ -142,7 +142,7 @@ def plot_characteristics(res, path: str | os.PathLike) -> Path:
     rows = tightest_sections(res.section_rows)
     lim = res.limits
     ncol = max(1, len(rows))
-    plt, fig = _figure(figsize=(4.0 * ncol, 10.0), dpi=100)
+    plt, fig = new_figure(figsize=(4.0 * ncol, 10.0), dpi=100)
     axes = fig.subplots(4, ncol, squeeze=False, sharex="col")
     for j, r in enumerate(rows):
         ch = r["characteristic"]
@@ -168,7 +168,7 @@ def plot_characteristics(res, path: str | os.PathLike) -> Path:
         axes[0, j].set_title(f"section {r['index']} (line {r['line_start']}), binds "
                              f"{r['binding']}", fontsize=9)
         axes[-1, j].set_xlabel("feed [mm/s]")
-    return _save(plt, fig, "Stability characteristic of the three tightest sections (blue: planned "
+    return save_figure(plt, fig, "Stability characteristic of the three tightest sections (blue: planned "
                  "feed; red shade: a limit broken)", path)
 
 

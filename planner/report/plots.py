@@ -10,10 +10,11 @@ import numpy as np
 from models.point import StabilityCharacteristic
 from planner._atomic import atomic_path
 
-__all__ = ["plot_characteristic", "plot_path_kinematics"]
+__all__ = ["new_figure", "plot_characteristic", "plot_path_kinematics", "save_figure"]
 
 
-def _figure(**kw):
+def new_figure(**kw):
+    """``(pyplot, figure)`` on the Agg backend (no display needed); ``kw`` go to ``plt.figure``."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -22,7 +23,7 @@ def _figure(**kw):
     return plt, plt.figure(**kw)
 
 
-def _save(plt, fig, title: str, path: str | os.PathLike) -> Path:
+def save_figure(plt, fig, title: str, path: str | os.PathLike) -> Path:
     """Title, tight layout, atomic PNG write, close."""
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
@@ -55,7 +56,7 @@ def plot_characteristic(ch: StabilityCharacteristic, path: str | os.PathLike,
         path: output PNG path.
         title: plot title.
     """
-    plt, fig = _figure(figsize=(8.0, 6.0), dpi=110)
+    plt, fig = new_figure(figsize=(8.0, 6.0), dpi=110)
     feed_mm_s = ch.feeds * 1e3
     ax_g, ax_m = fig.subplots(2, 1, sharex=True)
     gamma_window = ch.points[0].criterion == "gamma_window" if ch.points else False
@@ -91,7 +92,7 @@ def plot_characteristic(ch: StabilityCharacteristic, path: str | os.PathLike,
     p = ch.points[0] if ch.points else None
     if p is not None:
         title += f"  ({p.process_model} process model, {p.mass_model} mass, {p.criterion})"
-    return _save(plt, fig, title, path)
+    return save_figure(plt, fig, title, path)
 
 
 def plot_path_kinematics(s: np.ndarray, q: np.ndarray, lower: np.ndarray, upper: np.ndarray,
@@ -110,7 +111,7 @@ def plot_path_kinematics(s: np.ndarray, q: np.ndarray, lower: np.ndarray, upper:
         mode: milling mode codes (0 up, 1 down, 2 slot, −1 air), shape (n,).
         path: output PNG.
     """
-    plt, fig = _figure(figsize=(10.0, 7.5), dpi=100)
+    plt, fig = new_figure(figsize=(10.0, 7.5), dpi=100)
     ax_q, ax_e = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 2]})
     frac = (q - lower) / (upper - lower)
     for i, name in enumerate(joint_names):
@@ -139,4 +140,4 @@ def plot_path_kinematics(s: np.ndarray, q: np.ndarray, lower: np.ndarray, upper:
     ax_e.set_ylabel("depth of cut [mm]")
     ax_e.set_xlabel("path length s [m]")
     ax_e.legend(loc="upper left", fontsize=7, ncol=5)
-    return _save(plt, fig, title, path)
+    return save_figure(plt, fig, title, path)

@@ -12,6 +12,7 @@ from planner.supervisor.policy import (
     Episode,
     STATUSES,
     StepResult,
+    StepStatus,
     Supervisor,
     SupervisorConfig,
 )
@@ -88,6 +89,7 @@ __all__ = [
     "SimCell",
     "SimulatedCut",
     "StepResult",
+    "StepStatus",
     "Supervisor",
     "SupervisorConfig",
     "TRANSIENT_GAIN",

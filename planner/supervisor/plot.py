@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.report.plots import _figure, _save
+from planner.report.plots import new_figure, save_figure
 from planner.supervisor.sim_cut import CutTruth
 from planner.supervisor import StepResult
 
@@ -44,7 +44,7 @@ class RunTrace:
 def plot_run(trace: RunTrace, path: str | os.PathLike, truth: CutTruth | None = None,
              title: str = "supervised cut") -> Path:
     """Three panels over time: band and limit; override (and the applied one); true chatter."""
-    plt, fig = _figure(figsize=(9, 7.5))
+    plt, fig = new_figure(figsize=(9, 7.5))
     t = np.asarray(trace.t_s)
     n = 3 if truth is not None else 2
     ax1 = fig.add_subplot(n, 1, 1)
@@ -73,4 +73,4 @@ def plot_run(trace: RunTrace, path: str | os.PathLike, truth: CutTruth | None = 
         ax3.set_xlabel("time [s]")
     else:
         ax2.set_xlabel("time [s]")
-    return _save(plt, fig, title, path)
+    return save_figure(plt, fig, title, path)

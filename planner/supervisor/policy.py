@@ -37,6 +37,7 @@ step, every new target, and a heartbeat every ``heartbeat_s`` while nothing chan
 
 from __future__ import annotations
 
+import enum
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -46,7 +47,7 @@ from ruckig import InputParameter, Result, Ruckig, Trajectory
 
 from planner.supervisor.detector import DEFAULT_WAVELET, Detector, select_level
 from planner.supervisor.event_log import EventLog
-from planner.plan_file import Plan
+from planner.plan_file import Plan, PlanSection
 from planner.supervisor.characteristic import (
     Characteristic,
     characteristic_of,
@@ -59,6 +60,7 @@ from robot_io.signals.base import SignalChunk
 
 __all__ = [
     "STATUSES",
+    "StepStatus",
     "Episode",
     "StepResult",
     "Supervisor",
@@ -70,7 +72,22 @@ __all__ = [
 #: backing off; ``quiet`` band under the limit, waiting before recovery; ``recover`` climbing back
 #: towards the plan; ``hold`` signal missing or implausible: override held; ``safe`` signal lost
 #: for too long: safe override; ``error`` internal failure: override held.
-STATUSES = ("ok", "learning", "warmup", "alarm", "quiet", "recover", "hold", "safe", "error")
+class StepStatus(enum.StrEnum):
+    """What a supervisor step is doing (a ``str``: compares and serialises as its value)."""
+
+    OK = "ok"              # monitoring, no alarm
+    LEARNING = "learning"  # learning σ of stable cutting
+    WARMUP = "warmup"      # band filters settling after a start, restart or gap
+    ALARM = "alarm"        # the band is over its limit: the override is being moved
+    QUIET = "quiet"        # after an alarm, waiting for the band to stay quiet
+    RECOVER = "recover"    # returning towards the planned feed
+    HOLD = "hold"          # no signal: holding the last override
+    SAFE = "safe"          # signal lost too long: the safe override
+    ERROR = "error"        # an internal failure: holding the last override, said in the reason
+
+
+#: Every status, in :class:`StepStatus` order.
+STATUSES = tuple(StepStatus)
 #: Override changes smaller than this are not a new target [percent].
 TARGET_EPS_PCT = 1e-6
 #: Band values needed before σ is taken as learned.
@@ -134,7 +151,7 @@ class StepResult:
     """What one step decided.
 
     Attributes:
-        status: one of :data:`STATUSES`.
+        status: what the step is doing.
         override: override to command now [percent].
         target: where the override trajectory is heading [percent].
         band: largest |detail| of this step, or None.
@@ -146,7 +163,7 @@ class StepResult:
         direction: −1/0/+1 stabilising direction used on an alarm (0 otherwise or none).
     """
 
-    status: str
+    status: StepStatus
     override: float
     target: float
     band: float | None
@@ -183,11 +200,18 @@ class Episode:
     reached_s: float | None = None
 
 
+def _planned_feed(sec: PlanSection | None) -> float:
+    """The section's planned feed [m/s] (0 before the first section, or when it has none)."""
+    if sec is None or not math.isfinite(sec.feed):
+        return 0.0
+    return sec.feed
+
+
 @dataclass
 class _Track:
     s_m: float = 0.0
     section: int = -1
-    sec: dict[str, Any] = field(default_factory=dict)
+    sec: PlanSection | None = None
     char: Characteristic | None = None
     cap: float = 100.0
     ceiling: float = 100.0
@@ -213,13 +237,13 @@ class Supervisor:
         self.cfg = cfg = config or SupervisorConfig()
         self.log = log if log is not None else EventLog(None)
         self.fs_hz = float(fs_hz)
-        cuts = [s for s in plan.sections if s.get("kind", "cut") == "cut"] or plan.sections
+        cuts = [s for s in plan.sections if s.kind == "cut"] or list(plan.sections)
         f_c = float(np.median([chatter_frequency(s, cfg.chatter_hz) for s in cuts]))
-        teeth = [float(s["tooth_frequency_hz"]) for s in cuts if s.get("tooth_frequency_hz")]
+        teeth = [s.tooth_frequency for s in cuts if s.tooth_frequency]
         f_t = float(np.median(teeth)) if teeth else None
         self.level = select_level(self.fs_hz, f_c, f_t)
         self.detector = Detector(self.fs_hz, self.level, cfg.alpha_f, sigma, cfg.wavelet)
-        self.force_max_N = float(plan.data.get("constraints", {}).get("force_max_N") or math.inf)
+        self.force_max_N = float(plan.limits.force_max)
         self.plausible_max = (cfg.plausible_max if cfg.plausible_max is not None
                               else 10.0 * self.force_max_N if math.isfinite(self.force_max_N)
                               else math.inf)
@@ -243,7 +267,7 @@ class Supervisor:
         self._last_signal_now: float | None = None
         self._last_t: float | None = None
         self._last_alarm: float | None = None
-        self._status = "learning" if sigma is None else "warmup"
+        self._status = StepStatus.LEARNING if sigma is None else StepStatus.WARMUP
         self._last_log = -math.inf
         self._logged_target = math.nan
         self._last_band: float | None = None
@@ -258,13 +282,13 @@ class Supervisor:
     def _enter_section(self, s: float) -> None:
         sec = self.plan.section_at(s)
         tr = self._track
-        if int(sec["index"]) == tr.section:
+        if sec.index == tr.section:
             return
-        tr.section = int(sec["index"])
+        tr.section = sec.index
         tr.sec = sec
-        tr.char = characteristic_of(sec) if sec.get("kind", "cut") == "cut" else None
+        tr.char = characteristic_of(sec)
         tr.cap = 100.0
-        planned = float(sec.get("feed_mm_s") or 0.0)
+        planned = _planned_feed(sec)
         if tr.char is not None and planned > 0 and math.isfinite(self.force_max_N):
             f_lim = feed_limit_for_force(tr.char, self.force_max_N)
             tr.cap = min(100.0, 100.0 * f_lim / planned)
@@ -339,9 +363,9 @@ class Supervisor:
         except Exception as e:  # noqa: BLE001 - the loop must go on
             self.counts["errors"] += 1
             tr = self._track
-            res = StepResult("error", self._pos, self._target, None, math.inf, False, tr.section,
+            res = StepResult(StepStatus.ERROR, self._pos, self._target, None, math.inf, False, tr.section,
                              tr.s_m, f"internal error, override held: {type(e).__name__}: {e}")
-            self._status = "error"
+            self._status = StepStatus.ERROR
             self._emit(now, res, force=True)
             return res
 
@@ -354,11 +378,11 @@ class Supervisor:
         if self._last_signal_now is None:
             self._last_signal_now = now
         ov_applied = applied if applied is not None and math.isfinite(applied) else self._pos
-        tr.s_m += float(tr.sec.get("feed_mm_s") or 0.0) * 1e-3 * ov_applied / 100.0 * dt
+        tr.s_m += _planned_feed(tr.sec) * ov_applied / 100.0 * dt
         prev_section = tr.section
         self._enter_section(tr.s_m)
         floor, cap = self._limits()
-        planned = float(tr.sec.get("feed_mm_s") or 0.0)
+        planned = _planned_feed(tr.sec)
         reason = ""
         status = self._status
         target = self._target
@@ -395,15 +419,15 @@ class Supervisor:
             expected = force_at(tr.char, planned * ov_applied / 100.0)
 
         if missing > cfg.signal_timeout_s:
-            status, target = "safe", min(self.safe_pct, cap)
+            status, target = StepStatus.SAFE, min(self.safe_pct, cap)
             reason = (reason + "; " if reason else "") + (
                 f"no valid signal for {missing:.3f} s: safe override {target:.1f} %")
         elif missing > cfg.hold_after_s:
-            status, target = "hold", self._pos
+            status, target = StepStatus.HOLD, self._pos
             reason = (reason + "; " if reason else "") + (
                 f"no valid signal for {missing:.3f} s: holding {self._pos:.1f} %")
         elif valid and self.detector.sigma is None:
-            status, target = "learning", min(cap, tr.ceiling)
+            status, target = StepStatus.LEARNING, min(cap, tr.ceiling)
             if self._learn_t0 is None:
                 self._learn_t0 = float(chunk.t_s[0])
             d = self.detector.observe(chunk.t_s, chunk.values, expected)
@@ -413,7 +437,7 @@ class Supervisor:
             if float(chunk.t_s[-1]) - self._learn_t0 >= self._learn_s:
                 if self._learn_n >= MIN_LEARN_VALUES and self._learn_sum > 0:
                     self.detector.sigma = math.sqrt(self._learn_sum / self._learn_n)
-                    status = "ok"
+                    status = StepStatus.OK
                     reason = (f"sigma {self.detector.sigma:.4g} learned from {self._learn_n} band "
                               f"values; UCL {self.detector.ucl:.4g}")
                 else:
@@ -423,10 +447,10 @@ class Supervisor:
             out = self.detector.update(chunk.t_s, chunk.values, expected)
             band, ucl, alarm = out.band, out.ucl, out.alarm
             if band is None and not self.detector.monitor.ready:
-                status, target = "warmup", self._pos
+                status, target = StepStatus.WARMUP, self._pos
                 reason = reason or "band filter warming up: override held"
             elif alarm:
-                status = "alarm"
+                status = StepStatus.ALARM
                 self.counts["alarms"] += 1
                 target, direction, why = self._on_alarm(now, out.excess, out.t_s, planned, floor, cap)
                 reason = (f"chatter: band {band:.4g} > limit {ucl:.4g} (excess {out.excess:.2f}); "
@@ -434,24 +458,24 @@ class Supervisor:
             else:
                 since = math.inf if self._last_alarm is None else now - self._last_alarm
                 if since < cfg.quiet_s:
-                    status, target = "quiet", self._target
+                    status, target = StepStatus.QUIET, self._target
                     reason = f"band under the limit for {since:.3f} s: waiting {cfg.quiet_s} s"
                 else:
                     self._close_episode(now)
                     goal = min(cap, tr.ceiling)
                     if self._pos < goal - 0.05:
-                        status, target = "recover", goal
+                        status, target = StepStatus.RECOVER, goal
                         reason = (f"band quiet: recovering towards {goal:.1f} %"
                                   + (" (the section's chatter ceiling)" if tr.ceiling < cap else ""))
                     else:
-                        status, target = "ok", goal
+                        status, target = StepStatus.OK, goal
                         reason = reason or "band quiet"
         if prev_section != tr.section:
-            reason = (f"section {tr.section} (planned {planned:.3g} mm/s, cap {cap:.1f} %); "
+            reason = (f"section {tr.section} (planned {planned * 1e3:.3g} mm/s, cap {cap:.1f} %); "
                       + reason)
         target = min(max(target, floor), cap)
         open_ep = self.episodes[-1] if self.episodes and self.episodes[-1].end_s is None else None
-        fast_up = (open_ep is not None and open_ep.direction > 0 and status in ("alarm", "quiet"))
+        fast_up = (open_ep is not None and open_ep.direction > 0 and status in (StepStatus.ALARM, StepStatus.QUIET))
         self._advance(now)  # the state now, on the trajectory in force
         if abs(target - self._target) > TARGET_EPS_PCT or fast_up != self._fast_up:
             self._plan_traj(now, target, fast_up)
@@ -464,7 +488,7 @@ class Supervisor:
                          direction)
         changed = status != self._status or prev_section != tr.section
         self._status = status
-        self._emit(now, res, force=changed or alarm or status in ("hold", "safe"))
+        self._emit(now, res, force=changed or alarm or status in (StepStatus.HOLD, StepStatus.SAFE))
         return res
 
     def _on_alarm(self, now: float, excess: float, t_band: float | None, planned: float,

@@ -34,14 +34,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from planner.plan_file import Plan
+from planner.plan_file import Plan, PlanSection
 from planner.supervisor.characteristic import (
     Characteristic,
     characteristic_of,
     chatter_frequency,
     margin_at,
 )
-from robot_io.signals.base import SignalChunk, SourceStats, _Backlog
+from robot_io.signals.base import SignalChunk, SourceStats, Backlog
 
 __all__ = ["CutScenario", "CutTruth", "SimulatedCut"]
 
@@ -73,13 +73,13 @@ class CutScenario:
 class CutTruth:
     """What really happened, one row per generated block (for tests and benchmarks).
 
-    Lists of equal length: block end time [s], arc length [m], actual feed [mm/s], chatter amplitude
+    Lists of equal length: block end time [s], arc length [m], actual feed [m/s], chatter amplitude
     [N], true margin [N/m], section index, applied override [percent].
     """
 
     t_s: list[float] = field(default_factory=list)
     s_m: list[float] = field(default_factory=list)
-    feed_mm_s: list[float] = field(default_factory=list)
+    feed: list[float] = field(default_factory=list)
     chatter_N: list[float] = field(default_factory=list)
     margin_N_per_m: list[float] = field(default_factory=list)
     section: list[int] = field(default_factory=list)
@@ -119,19 +119,18 @@ class SimulatedCut:
         self._feed: float | None = None
         self._a = 0.0
         self._chars: dict[int, Characteristic | None] = {}
-        self._backlog = _Backlog(int(4 * self.fs_hz))
+        self._backlog = Backlog(int(4 * self.fs_hz))
         self._phase_f = float(self._rng.uniform(0, 2 * math.pi))
         self._phase_t = self._rng.uniform(0, 2 * math.pi, 2)
 
     # -- plant -------------------------------------------------------------------------------
-    def _section(self) -> dict:
+    def _section(self) -> PlanSection:
         return self.plan.section_at(self._s)
 
-    def _char(self, sec: dict) -> Characteristic | None:
-        i = int(sec["index"])
-        if i not in self._chars:
-            self._chars[i] = characteristic_of(sec) if sec.get("kind", "cut") == "cut" else None
-        return self._chars[i]
+    def _char(self, sec: PlanSection) -> Characteristic | None:
+        if sec.index not in self._chars:
+            self._chars[sec.index] = characteristic_of(sec)
+        return self._chars[sec.index]
 
     @property
     def start_clock_s(self) -> float | None:
@@ -166,20 +165,20 @@ class SimulatedCut:
             ov = 100.0
         if not math.isfinite(ov):
             ov = 100.0
-        target = float(sec["feed_mm_s"]) * ov / 100.0 if sec.get("kind", "cut") != "rapid" else 0.0
+        target = sec.feed * ov / 100.0 if sec.kind != "rapid" else 0.0
         if self._feed is None:
             self._feed = target
         tau = max(sc.feed_tau_s, 1e-6)
         feed = target + (self._feed - target) * np.exp(-(t - t[0] + 1.0 / self.fs_hz) / tau)
         self._feed = float(feed[-1])
-        self._s += float(np.mean(feed)) * 1e-3 * dt
+        self._s += float(np.mean(feed)) * dt
         f_c = chatter_frequency(sec, sc.chatter_hz_default)
-        f_t = float(sec.get("tooth_frequency_hz") or 0.0)
+        f_t = sec.tooth_frequency or 0.0
         if ch is None:
             mean_F = np.zeros(n)
             margin = math.inf
         else:
-            mean_F = np.interp(feed, ch.feeds_mm_s, ch.force_N)
+            mean_F = np.interp(feed, ch.feeds, ch.force)
             after = sc.onset_s is not None and t[0] >= sc.onset_s
             shift = sc.boundary_shift if after else 1.0
             margin = margin_at(ch, self._feed * shift) - (sc.margin_offset_N_per_m if after else 0.0)
@@ -203,10 +202,10 @@ class SimulatedCut:
         tr = self.truth
         tr.t_s.append(float(t[-1]))
         tr.s_m.append(self._s)
-        tr.feed_mm_s.append(self._feed)
+        tr.feed.append(self._feed)
         tr.chatter_N.append(self._a)
         tr.margin_N_per_m.append(margin if math.isfinite(margin) else float("nan"))
-        tr.section.append(int(sec["index"]))
+        tr.section.append(sec.index)
         tr.override.append(ov)
         if sc.loss_s is not None and sc.loss_s[0] <= t[-1] < sc.loss_s[1]:
             return np.zeros(0), np.zeros(0)

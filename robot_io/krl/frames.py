@@ -1,7 +1,9 @@
-"""KUKA frame and circle geometry (private helper of ``robot_io.krl.reader``; re-exported there).
+"""KUKA frames: the one place the A, B, C convention is coded (job, planner, KRL writer and reader
+all use it), plus the circle geometry of CIRC moves.
 
 KUKA A, B, C (degrees) are Z-Y'-X'' Euler angles: R = Rz(A)·Ry(B)·Rx(C); the columns of R are the
-axes of the rotated frame (e.g. the TCP) expressed in the reference frame (e.g. ``$BASE``).
+axes of the rotated frame (e.g. the TCP) expressed in the reference frame (e.g. ``$BASE``). The
+first column is the frame's +x axis: for ``$TOOL`` the tool axis (docs/model.md §1).
 """
 
 from __future__ import annotations
@@ -16,10 +18,12 @@ __all__ = [
     "GIMBAL_TOL",
     "abc_to_matrix",
     "circle_through",
+    "frame_from_mm_deg",
     "frame_matrix",
     "matrices_to_abc",
     "matrix_to_abc",
     "rotate_about",
+    "x_axes",
 ]
 
 #: Below this |cos B| [-] the A and C angles are not separable (B = ±90°); ``matrix_to_abc``
@@ -34,14 +38,19 @@ CIRC_COLLINEAR_SIN = 1e-6
 
 def abc_to_matrix(a_deg: float, b_deg: float, c_deg: float) -> np.ndarray:
     """Rotation matrix [-], shape (3, 3), of KUKA angles A, B, C [deg]: Rz(A)·Ry(B)·Rx(C)."""
-    a, b, c = math.radians(a_deg), math.radians(b_deg), math.radians(c_deg)
-    ca, sa, cb, sb, cc, sc = math.cos(a), math.sin(a), math.cos(b), math.sin(b), math.cos(c), \
-        math.sin(c)
-    return np.array([
-        [ca * cb, ca * sb * sc - sa * cc, ca * sb * cc + sa * sc],
-        [sa * cb, sa * sb * sc + ca * cc, sa * sb * cc - ca * sc],
-        [-sb, cb * sc, cb * cc],
-    ])
+    a, b, c = np.radians([a_deg, b_deg, c_deg])
+    ca, sa, cb, sb, cc, sc = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(c), np.sin(c)
+    rz = np.array([[ca, -sa, 0.0], [sa, ca, 0.0], [0.0, 0.0, 1.0]])
+    ry = np.array([[cb, 0.0, sb], [0.0, 1.0, 0.0], [-sb, 0.0, cb]])
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, cc, -sc], [0.0, sc, cc]])
+    return rz @ ry @ rx
+
+
+def x_axes(abc_deg: np.ndarray) -> np.ndarray:
+    """The rotated frames' +x axes (the first column of :func:`abc_to_matrix`, to the last bit) of
+    rows of KUKA A, B, C [deg], shape (n, 3) → (n, 3): for TCP orientations, the tool axes."""
+    a, b = np.radians(abc_deg[:, 0]), np.radians(abc_deg[:, 1])
+    return np.column_stack([np.cos(a) * np.cos(b), np.sin(a) * np.cos(b), -np.sin(b)])
 
 
 def matrix_to_abc(rot: np.ndarray) -> tuple[float, float, float]:
@@ -75,6 +84,15 @@ def frame_matrix(x_m: float, y_m: float, z_m: float, a_deg: float, b_deg: float,
     t = np.eye(4)
     t[:3, :3] = abc_to_matrix(a_deg, b_deg, c_deg)
     t[:3, 3] = (x_m, y_m, z_m)
+    return t
+
+
+def frame_from_mm_deg(xyz_mm, abc_deg) -> np.ndarray:
+    """Homogeneous transform, shape (4, 4), SI [m], of a frame given as the job and the KRL
+    program write it: X, Y, Z [mm] (3,) and A, B, C [deg] (3,)."""
+    t = np.eye(4)
+    t[:3, :3] = abc_to_matrix(*abc_deg)
+    t[:3, 3] = np.asarray(xyz_mm, float) * 1e-3
     return t
 
 

@@ -4,6 +4,7 @@
 (:mod:`~robot_io.signals.replay`) and a UDP sample stream (:mod:`~robot_io.signals.udp`)."""
 
 from robot_io.signals.base import (
+    Backlog,
     CHUNK_STATUSES,
     SignalChunk,
     SignalSource,
@@ -27,6 +28,7 @@ from robot_io.signals.udp import (
 )
 
 __all__ = [
+    "Backlog",
     "CHUNK_STATUSES",
     "HEADER",
     "MAGIC",

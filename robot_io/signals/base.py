@@ -20,6 +20,7 @@ import numpy as np
 
 __all__ = [
     "CHUNK_STATUSES",
+    "Backlog",
     "SignalChunk",
     "SignalSource",
     "SourceStats",
@@ -110,7 +111,7 @@ class SignalSource(Protocol):
 
 
 @dataclass
-class _Backlog:
+class Backlog:
     """Samples received but not yet handed out (shared by the sources); bounded."""
 
     limit: int

@@ -32,7 +32,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from robot_io.signals.base import SignalChunk, SourceStats, _Backlog, empty_chunk
+from robot_io.signals.base import SignalChunk, SourceStats, Backlog, empty_chunk
 
 __all__ = [
     "HEADER",
@@ -102,7 +102,7 @@ class UdpSignalSource:
         self._clock = clock or time.monotonic
         self._last_rx = self._clock()
         self._next_seq: int | None = None
-        self._backlog = _Backlog(BACKLOG_SAMPLES)
+        self._backlog = Backlog(BACKLOG_SAMPLES)
         self._closed = False
 
     def _accept(self, data: bytes) -> None:

@@ -1,0 +1,99 @@
+"""``cctmill inspect FILE|JOB.toml``: a CAM program's summary, or a job placed in its cell."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+__all__ = ["inspect_table", "register"]
+
+
+def inspect_table(summary: dict) -> str:
+    bbox = summary["bbox_m"]
+    feeds = summary["feed_mm_min"]
+    rows = [
+        f"file          {summary['file']}",
+        f"format        {summary['format']} ({summary['units']})",
+        f"moves         {summary['moves']}  (rapids {summary['rapids']}, arcs {summary['arcs']}"
+        f", inverse-time {summary['inverse_time_moves']})",
+        f"length        {summary['length_m']:.4f} m  (cutting {summary['cutting_length_m']:.4f} m)",
+    ]
+    if bbox:
+        rows.append("bbox          " + "  ".join(
+            f"{ax} {lo * 1e3:.3f}..{hi * 1e3:.3f}" for ax, lo, hi in zip("XYZ", *bbox,
+                                                                        strict=True)) + " mm")
+    if feeds:
+        rows.append(f"feed          {feeds['min']:.1f} .. {feeds['max']:.1f} mm/min")
+    axis = "yes (5-axis / tool-axis vectors)" if summary["has_tool_axis"] else "no (3-axis)"
+    rows.append(f"tool axis     {axis}")
+    if summary["skipped"]:
+        rows.append("skipped       " + ", ".join(f"{k} {v}" for k, v in
+                                                sorted(summary["skipped"].items())))
+    rows.append(f"warnings      {len(summary['warnings'])}")
+    rows += [f"  {w}" for w in summary["warnings"][:20]]
+    if len(summary["warnings"]) > 20:
+        rows.append(f"  ... {len(summary['warnings']) - 20} more (use --json)")
+    return "\n".join(rows)
+
+
+def _cmd_inspect(args: argparse.Namespace) -> int:
+    from robot_io.readers import read_toolpath
+    from robot_io.toolpath import summarize
+
+    target = Path(args.file)
+    if target.suffix.lower() == ".toml":
+        from planner.job import load_job
+        from planner.prepare import inspect_job, prepare
+
+        job = load_job(target)
+        prep = prepare(job)
+        out = inspect_job(prep)
+        if args.plot:
+            from planner.report.plots import plot_path_kinematics
+
+            e, k = prep.engagement, prep.kinematics
+            plot_path_kinematics(prep.path.s, k.q, prep.robot.data.lower, prep.robot.data.upper,
+                                 k.joint_names, k.reachable, e.a_e, e.a_p, e.mode, args.plot,
+                                 title=f"{job.job.name}: joints and engagement along the path")
+        if args.json:
+            print(json.dumps(out, indent=2))
+        else:
+            for tp in out["toolpaths"]:
+                print(inspect_table(tp))
+            r, e = out["reachability"], out["engagement"]
+            print(f"samples       {out['samples']} over {out['path_length_m']:.4f} m")
+            print(f"reachable     {'all' if r['all_reachable'] else 'NO'}"
+                  f" ({r['unreachable_samples']} unreachable)")
+            for line in r["problems"]:
+                print(f"  {line}")
+            for name, (lo, hi) in r["joint_range_deg"].items():
+                print(f"  {name} {lo:8.2f} .. {hi:8.2f} deg")
+            print(f"engagement    {e['source']}: " + ", ".join(f"{k} {v}" for k, v in e["modes"].items()))
+            for key in ("ae_mm", "ap_mm"):
+                if e[key]:
+                    print(f"  {key[:2]} {e[key]['min']:.3f} / {e[key]['mean']:.3f} / "
+                          f"{e[key]['max']:.3f} mm (min/mean/max)")
+            if args.plot:
+                print(f"plot: {args.plot}")
+        return 0
+    options = {"rotary": args.rotary} if args.rotary else {}
+    tp = read_toolpath(target, strict=not args.lenient, **options)
+    summary = summarize(tp)
+    print(json.dumps(summary, indent=2) if args.json else inspect_table(summary))
+    return 0
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add ``inspect``."""
+    pi = sub.add_parser("inspect", help="summary of a toolpath file, or of a job (reachability, "
+                                       "engagement)")
+    pi.add_argument("file", help="toolpath (.nc/.ngc/.apt/.cl/.src) or job file (.toml)")
+    pi.add_argument("--json", action="store_true", help="print JSON (SI)")
+    pi.add_argument("--lenient", action="store_true",
+                    help="collect problems as warnings instead of stopping at the first")
+    pi.add_argument("--rotary", choices=["none", "xyzac-trunnion"],
+                    help="G-code rotary-axis kinematics for A/B/C words")
+    pi.add_argument("--plot", metavar="FILE.png",
+                    help="(job) joint angles and engagement along the path")
+    pi.set_defaults(run=_cmd_inspect)

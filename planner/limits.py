@@ -1,0 +1,94 @@
+"""The limits a plan holds, in SI: what the job's ``[limits]`` and ``[spindle]`` tables ask for.
+
+One SI edge: :meth:`Limits.from_job` converts the job's units (mm, mm/s, kW) once;
+:meth:`Limits.as_json` / :meth:`Limits.from_json` are plan.json's ``constraints`` object.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from planner.job import Job
+
+__all__ = ["Limits"]
+
+
+@dataclass(frozen=True)
+class Limits:
+    """What no sample may exceed, SI (from the job's ``[limits]`` and ``[spindle]``).
+
+    Attributes:
+        force_max: resultant average cutting force [N].
+        deflection_tol: ‖δ‖ at the TCP [m].
+        power_max: spindle power [W].
+        feed_min, feed_max: feed bounds [m/s].
+        feed_change_max: largest feed change between neighbouring cut sections [m/s] (None: free).
+        margin_min: required chatter stability margin [N/m] (eigen criterion).
+        section_length_min: shortest section [m].
+        path_acc_max: path acceleration of feed transitions [m/s²].
+        path_jerk_max: path jerk of feed transitions [m/s³].
+        rapid_speed: path-speed bound on rapid moves [m/s].
+    """
+
+    force_max: float
+    deflection_tol: float
+    power_max: float
+    feed_min: float
+    feed_max: float
+    feed_change_max: float | None
+    margin_min: float
+    section_length_min: float
+    path_acc_max: float
+    path_jerk_max: float
+    rapid_speed: float
+
+    @classmethod
+    def from_job(cls, job: Job) -> Limits:
+        lim = job.limits
+        return cls(force_max=lim.force_max_n, deflection_tol=lim.deflection_tol_mm * 1e-3,
+                   power_max=job.spindle.power_max_kw * 1e3, feed_min=lim.feed_min_mm_s * 1e-3,
+                   feed_max=lim.feed_max_mm_s * 1e-3,
+                   feed_change_max=(None if lim.feed_change_max_mm_s is None
+                                    else lim.feed_change_max_mm_s * 1e-3),
+                   margin_min=lim.margin_min_n_per_m,
+                   section_length_min=lim.section_length_min_mm * 1e-3,
+                   path_acc_max=lim.path_acc_max_m_s2, path_jerk_max=lim.path_jerk_max_m_s3,
+                   rapid_speed=lim.rapid_mm_s * 1e-3)
+
+    @classmethod
+    def from_json(cls, doc: dict[str, Any]) -> Limits:
+        """Limits from plan.json's ``constraints`` (units in the names); a key that is missing or
+        ``null`` means no such limit (synthetic and older plans carry only some)."""
+
+        def get(key: str, scale: float, none: float | None) -> float | None:
+            v = doc.get(key)
+            return none if v is None else float(v) * scale
+
+        return cls(force_max=get("force_max_N", 1.0, math.inf),
+                   deflection_tol=get("deflection_tol_mm", 1e-3, math.inf),
+                   power_max=get("power_max_kW", 1e3, math.inf),
+                   feed_min=get("feed_min_mm_s", 1e-3, 0.0),
+                   feed_max=get("feed_max_mm_s", 1e-3, math.inf),
+                   feed_change_max=get("feed_change_max_mm_s", 1e-3, None),
+                   margin_min=get("margin_min_N_per_m", 1.0, 0.0),
+                   section_length_min=get("section_length_min_mm", 1e-3, 0.0),
+                   path_acc_max=get("path_acc_max_m_s2", 1.0, math.inf),
+                   path_jerk_max=get("path_jerk_max_m_s3", 1.0, math.inf),
+                   rapid_speed=get("rapid_mm_s", 1e-3, math.inf))  # type: ignore[arg-type]
+
+    def as_json(self, safety_factor: float) -> dict:
+        """The ``constraints`` object of plan.json (units in the names)."""
+        return {
+            "force_max_N": self.force_max, "deflection_tol_mm": self.deflection_tol * 1e3,
+            "power_max_kW": self.power_max * 1e-3, "feed_min_mm_s": self.feed_min * 1e3,
+            "feed_max_mm_s": self.feed_max * 1e3,
+            "feed_change_max_mm_s": (None if self.feed_change_max is None
+                                     else self.feed_change_max * 1e3),
+            "margin_min_N_per_m": self.margin_min,
+            "section_length_min_mm": self.section_length_min * 1e3,
+            "path_acc_max_m_s2": self.path_acc_max, "path_jerk_max_m_s3": self.path_jerk_max,
+            "rapid_mm_s": self.rapid_speed * 1e3, "safety_factor": safety_factor,
+        }
