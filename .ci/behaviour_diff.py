@@ -14,7 +14,8 @@ compares:
 Numbers are compared exactly, after removing the fields that measure the machine rather than the plan
 (``wall_times_s``, the solver's build and solve times) and the paths of the trees. A KRL line that
 differs only in how a number prints (the same value to 1e-12, e.g. the float noise
-``0.039645373000000005`` of a feed) is reported separately, as allowed. Exit status 0 when nothing but allowed differences remain.
+``0.039645373000000005`` of a feed) is reported separately, as allowed. Exit status 0 when nothing
+but allowed differences remain.
 """
 
 from __future__ import annotations
@@ -134,7 +135,8 @@ def main() -> int:
             elif a[name] == b[name]:
                 print(f"same     {name}")
             elif name.startswith("krl/") and _float_noise_only(a[name], b[name]):  # type: ignore[arg-type]
-                n = sum(x != y for x, y in zip(a[name].splitlines(), b[name].splitlines()))  # type: ignore[union-attr]
+                pairs = zip(a[name].splitlines(), b[name].splitlines(), strict=True)  # type: ignore[union-attr]
+                n = sum(x != y for x, y in pairs)
                 print(f"noise    {name}: {n} lines differ only in float noise of a number (allowed)")
                 print(_diff(name, a[name], b[name])[:1200])
             else:

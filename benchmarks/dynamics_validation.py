@@ -134,9 +134,9 @@ def workspace(rpm: float, a_e: float, a_p: float, mode: str, n: int = 5) -> tupl
         rows.append(f"| {x:.0f} | " + " | ".join(cells) + " |")
     OUT.mkdir(exist_ok=True)
     path = OUT / f"dynamic_map_{rpm:.0f}rpm.png"
-    from planner.report.plots import _figure, _save
+    from planner.report.plots import new_figure, save_figure
 
-    plt, fig = _figure(figsize=(6, 5))
+    plt, fig = new_figure(figsize=(6, 5))
     ax = fig.add_subplot(1, 1, 1)
     im = ax.pcolormesh(a3, a2, 100 * ratio, shading="nearest", cmap="viridis")
     fig.colorbar(im, ax=ax, label="F_PV / F_peak [%]")
@@ -146,7 +146,7 @@ def workspace(rpm: float, a_e: float, a_p: float, mode: str, n: int = 5) -> tupl
                 ax.plot(y, x, "w+", ms=10)
     ax.set_xlabel("A3 [deg]")
     ax.set_ylabel("A2 [deg]")
-    _save(plt, fig, f"{mode} a_e {a_e * 1e3:.0f} mm a_p {a_p * 1e3:.1f} mm, {rpm:.0f} rpm: "
+    save_figure(plt, fig, f"{mode} a_e {a_e * 1e3:.0f} mm a_p {a_p * 1e3:.1f} mm, {rpm:.0f} rpm: "
           "+ = static force model valid", path)
     valid = int(np.sum(m.valid))
     total = int(np.sum(np.isfinite(m.ratio)))

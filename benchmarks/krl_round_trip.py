@@ -28,7 +28,6 @@ if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
 from planner.export import plan_to_krl  # noqa: E402
-from planner.plan_file import load_plan  # noqa: E402
 from robot_io.krl import KrlMove, KrlProgramSpec, KrlSection, write_krl  # noqa: E402
 from robot_io.krl.lint import lint_krl  # noqa: E402
 from robot_io.krl.reader import abc_to_matrix, read_krl  # noqa: E402

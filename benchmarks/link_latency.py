@@ -1,7 +1,8 @@
 """Robot link latency over loopback: KukaVarProxy write round trip and RSI reply time.
 
 1. KVP: ``$OV_PRO`` write round trips (request → reply) and write + read-back pairs (what
-   :class:`robot_io.links.kvp.KvpClient` does per override change) of :class:`~robot_io.links.kvp.KvpConnection`
+   :class:`robot_io.links.kvp.KvpClient` does per override change) of
+   :class:`~robot_io.links.kvp.KvpConnection`
    against :class:`~robot_io.links.kvp_sim.KvpSimServer`; py-openshowvar's write on the same server when
    installed; baseline: a bare TCP echo of the same request bytes (thread + loopback cost only).
 2. RSI: :class:`~robot_io.links.rsi_sim.RsiSimController` at 4 ms and 12 ms against

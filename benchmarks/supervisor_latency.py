@@ -42,14 +42,14 @@ for _p in (str(ROOT), str(ROOT / "tests")):
 import pywt  # noqa: E402
 from _plans import make_plan  # noqa: E402
 
-from planner.supervisor.session import simulated_sigma  # noqa: E402
-from planner.supervisor.detector import BandMonitor  # noqa: E402
 from planner.plan_file import load_plan  # noqa: E402
-from planner.supervisor.sim_cell import SimCell  # noqa: E402
-from planner.supervisor.sim_cut import CutScenario, SimulatedCut  # noqa: E402
+from planner.supervisor import Supervisor, SupervisorConfig  # noqa: E402
+from planner.supervisor.detector import BandMonitor  # noqa: E402
 from planner.supervisor.loop import VirtualClock, run_loop  # noqa: E402
 from planner.supervisor.metrics import episode_metrics  # noqa: E402
-from planner.supervisor import Supervisor, SupervisorConfig  # noqa: E402
+from planner.supervisor.session import simulated_sigma  # noqa: E402
+from planner.supervisor.sim_cell import SimCell  # noqa: E402
+from planner.supervisor.sim_cut import CutScenario, SimulatedCut  # noqa: E402
 from robot_io.links.base import LinkStats, LinkStatus  # noqa: E402
 
 FS = 10_000.0

@@ -24,7 +24,7 @@ _SOURCES = {
     "InputError": "models.errors",
     "MASS_MODELS": "models.analysis",
     "MILLING_MODES": "models.cutting",
-    "Material": "models.cutting",
+    "Material": "models.tooling",
     "ModelParameters": "models.analysis",
     "OUTPUTS": "models.analysis",
     "PARAM_LAYOUT": "models.analysis",
@@ -36,51 +36,85 @@ _SOURCES = {
     "SimulationResult": "models.dynamics",
     "SingularPoseError": "models.errors",
     "StabilityCharacteristic": "models.point",
-    "Structure": "models.dynamics",
-    "Tool": "models.cutting",
+    "Structure": "models.structure",
+    "Tool": "models.tooling",
     "UnknownDataError": "models.errors",
     "UnreachablePoseError": "models.errors",
-    "available_materials": "models.cutting",
+    "available_materials": "models.tooling",
     "available_robots": "models.robot",
-    "available_tools": "models.cutting",
+    "available_tools": "models.tooling",
     "compensate": "models.deflection",
     "estimate_radial_depth": "models.deflection",
     "floquet": "models.floquet",
     "floquet_margin": "models.floquet",
-    "load_material": "models.cutting",
+    "load_material": "models.tooling",
     "load_robot": "models.robot",
-    "load_tool": "models.cutting",
+    "load_tool": "models.tooling",
     "path_deflection": "models.deflection",
     "path_floquet": "models.floquet",
     "point_function": "models.analysis",
-    "pose_structure": "models.dynamics",
+    "pose_structure": "models.structure",
     "simulate": "models.dynamics",
 }
 
-__all__ = sorted(_SOURCES)
+__all__ = [
+    "CRITERIA",
+    "CUT_LAYOUT",
+    "CctmillError",
+    "Cut",
+    "DEFAULT_ROBOT",
+    "DataFileError",
+    "FloquetResult",
+    "InputError",
+    "MASS_MODELS",
+    "MILLING_MODES",
+    "Material",
+    "ModelParameters",
+    "OUTPUTS",
+    "PARAM_LAYOUT",
+    "PROCESS_MODELS",
+    "PointAnalysis",
+    "PointModel",
+    "Robot",
+    "RobotData",
+    "SimulationResult",
+    "SingularPoseError",
+    "StabilityCharacteristic",
+    "Structure",
+    "Tool",
+    "UnknownDataError",
+    "UnreachablePoseError",
+    "available_materials",
+    "available_robots",
+    "available_tools",
+    "compensate",
+    "estimate_radial_depth",
+    "floquet",
+    "floquet_margin",
+    "load_material",
+    "load_robot",
+    "load_tool",
+    "path_deflection",
+    "path_floquet",
+    "point_function",
+    "pose_structure",
+    "simulate",
+]
 
 if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerly
     from models.analysis import (
         CUT_LAYOUT,
-        Cut,
         MASS_MODELS,
-        ModelParameters,
         OUTPUTS,
         PARAM_LAYOUT,
         PROCESS_MODELS,
+        Cut,
+        ModelParameters,
         point_function,
     )
-    from models.cutting import (
-        MILLING_MODES,
-        Material,
-        Tool,
-        available_materials,
-        available_tools,
-        load_material,
-        load_tool,
-    )
+    from models.cutting import MILLING_MODES
     from models.deflection import compensate, estimate_radial_depth, path_deflection
-    from models.dynamics import SimulationResult, Structure, pose_structure, simulate
+    from models.dynamics import SimulationResult, simulate
     from models.errors import (
         CctmillError,
         DataFileError,
@@ -92,6 +126,8 @@ if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerl
     from models.floquet import FloquetResult, floquet, floquet_margin, path_floquet
     from models.point import CRITERIA, PointAnalysis, PointModel, StabilityCharacteristic
     from models.robot import DEFAULT_ROBOT, Robot, RobotData, available_robots, load_robot
+    from models.structure import Structure, pose_structure
+    from models.tooling import Material, Tool, available_materials, available_tools, load_material, load_tool
 
 
 def __getattr__(name: str) -> Any:

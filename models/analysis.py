@@ -32,8 +32,8 @@ from models.robot import Robot
 __all__ = [
     "CUT_LAYOUT",
     "MASS_MODELS",
-    "PARAM_LAYOUT",
     "OUTPUTS",
+    "PARAM_LAYOUT",
     "PROCESS_MODELS",
     "Cut",
     "ModelParameters",

@@ -46,7 +46,6 @@ __all__ = [
 
 #: Below this |K₂ off-diagonal| + |K₂ diagonal difference| [N/m] the 2×2 stiffness is isotropic and
 #: its principal direction undefined; atan2(0, 0) = 0 is then returned (X axis), harmless.
-_ISOTROPY_TOL = 1e-9
 
 
 def force_frame(alpha: ca.SX, x_o: ca.SX, y_o: ca.SX, z_o: ca.SX) -> ca.SX:

@@ -1,19 +1,10 @@
 """Time-domain milling on the flexible arm: the 2-DOF equilibrium-chip-thickness model (SPEC §6).
 
-The structure is the arm at the pose, reduced to the plane normal to the tool axis, with coordinates
-x = (x_Xo, x_Zo) [m] along the cutting frame's X_o (radial) and Z_o (feed) axes (SPEC §4):
-
-    M ẍ + C ẋ + K x = F(t)
-
-M is the Cartesian translational mass at the TCP (CRBA of the URDF plus the spindle point mass,
-Λ = (J_v M_q⁻¹ J_vᵀ)⁻¹) and K the CCT translational stiffness K_t under the mean cutting force
-(:func:`models.analysis.point_function`'s ``stiffness``), both projected on (X_o, Z_o) and
-symmetrised; C is modal (stiffness-and-mass proportional per mode) with one damping ratio ζ.
-
-The cutter is a helical flat end mill cut into thin axial slices; slice j of flute k sits at the
-immersion angle φ = Ω t + 2πk/N − j·Δz·tan(helix)/R (the helix makes the upper slices lag). Each
-engaged edge slice carries the force of :func:`models.cutting.edge_forces` (the same magnitudes as
-the point model), projected with F = −F_t t(φ) − F_r n(φ) + F_a Y_o.
+The structure is the arm at the pose in the plane normal to the tool axis (:mod:`models.structure`:
+M ẍ + C ẋ + K x = F(t), x = (x_Xo, x_Zo) [m]); the cutter is cut into thin axial slices
+(:mod:`models.cutter_geometry`). Each engaged edge slice carries the force of
+:func:`models.cutting.edge_forces` (the same magnitudes as the point model), projected with
+F = −F_t t(φ) − F_r n(φ) + F_a Y_o.
 
 **Chip thickness.** h = c sin φ + n(φ)·x(t) − n(φ)·x_prev, clipped at 0 (the edge leaves the cut,
 and then carries no force at all, edge force included). x_prev is the position at which the previous
@@ -45,16 +36,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cache
 
-import casadi as ca
 import numpy as np
 import scipy.linalg
 
 from models import cutting
-from models.analysis import Cut, ModelParameters, point_function
+from models.analysis import Cut
+from models.cutter_geometry import DEFAULT_SLICES, CutterGeometry, cutter_geometry
 from models.errors import InputError
-from models.robot import Robot
+from models.structure import (
+    DEFAULT_DAMPING_RATIO,
+    Structure,
+    modal_damping,
+    pose_structure,
+    tcp_mass,
+)
 
 __all__ = [
     "DEFAULT_DAMPING_RATIO",
@@ -73,9 +69,6 @@ __all__ = [
     "tcp_mass",
 ]
 
-#: Damping ratio of both arm modes when judging stability [-] (SPEC §6: an undamped run sits on
-#: the margin; 2 % is a typical structural value for a robot arm).
-DEFAULT_DAMPING_RATIO = 0.02
 #: Per-step equilibrium: stop when the force changes by less than this fraction [-] (SPEC §6: 1 %).
 FORCE_TOLERANCE = 0.01
 #: Absolute floor of the force scale in the convergence test [N]: below it (edge out of the cut)
@@ -86,165 +79,9 @@ FORCE_FLOOR = 1e-6
 MAX_ITERATIONS = 50
 #: Fewest integrator steps per tooth period [-] (angular resolution 360°/N/64 at most).
 MIN_STEPS_PER_TOOTH = 64
-#: Axial slices of the helical cutter [-].
-DEFAULT_SLICES = 16
 #: Vibration amplitude [m], as a fraction of the feed per tooth, above which the edge leaves the
 #: cut part of the time: growth rates are fitted only below it (the linear regime).
 SATURATION_FRACTION = 0.25
-
-
-# --------------------------------------------------------------------------------------------------
-# The structure at a pose
-# --------------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Structure:
-    """The arm's 2-DOF structure in the plane (X_o, Z_o) at one pose. SI.
-
-    Attributes:
-        mass: M [kg], shape (2, 2), symmetric positive definite.
-        stiffness: K [N/m], shape (2, 2), symmetric positive definite.
-        damping: C [N·s/m], shape (2, 2).
-        plane: the plane's axes X_o, Z_o in base axes, shape (3, 2).
-        damping_ratio: ζ used to build ``damping`` [-] (NaN when C was given directly).
-    """
-
-    mass: np.ndarray
-    stiffness: np.ndarray
-    damping: np.ndarray
-    plane: np.ndarray
-    damping_ratio: float = float("nan")
-
-    def __post_init__(self) -> None:
-        for name in ("mass", "stiffness", "damping"):
-            value = np.asarray(getattr(self, name), float)
-            if value.shape != (2, 2) or not np.all(np.isfinite(value)):
-                raise InputError(name, f"need a finite 2x2 matrix, got shape {value.shape}")
-            object.__setattr__(self, name, value)
-        for name in ("mass", "stiffness"):
-            if np.linalg.eigvalsh(0.5 * (getattr(self, name) + getattr(self, name).T))[0] <= 0:
-                raise InputError(name, "must be positive definite")
-
-    @property
-    def natural_frequencies_hz(self) -> np.ndarray:
-        """Undamped natural frequencies [Hz], ascending, shape (2,)."""
-        omega2 = scipy.linalg.eigh(self.stiffness, self.mass, eigvals_only=True)
-        return np.sqrt(np.maximum(omega2, 0.0)) / (2.0 * np.pi)
-
-    def state_matrix(self, process_stiffness: np.ndarray | None = None) -> np.ndarray:
-        """ż = A z for z = (x, ẋ), with an optional process stiffness K_p [N/m] (F = K_p x), (4, 4)."""
-        k = self.stiffness if process_stiffness is None else self.stiffness - process_stiffness
-        m_inv = np.linalg.inv(self.mass)
-        return np.block([[np.zeros((2, 2)), np.eye(2)], [-m_inv @ k, -m_inv @ self.damping]])
-
-
-def modal_damping(mass: np.ndarray, stiffness: np.ndarray, ratio: float) -> np.ndarray:
-    """C [N·s/m] with damping ratio ``ratio`` in both modes: C = M V diag(2ζω) Vᵀ M, VᵀMV = I."""
-    if not (math.isfinite(ratio) and 0.0 <= ratio < 1.0):
-        raise InputError("damping ratio", f"must lie in [0, 1), got {ratio!r}")
-    omega2, v = scipy.linalg.eigh(stiffness, mass)
-    omega = np.sqrt(np.maximum(omega2, 0.0))
-    return mass @ v @ np.diag(2.0 * ratio * omega) @ v.T @ mass
-
-
-@cache
-def _tcp_mass_function(robot: Robot) -> ca.Function:
-    sym = robot.symbolic
-    m_sp = ca.SX.sym("spindle_mass")
-    com = ca.SX.sym("spindle_com", 3)
-    mass = robot.mass_matrix_expr(m_sp, com)
-    jv = sym.jacobian[0:3, :]
-    lam = ca.inv(jv @ ca.solve(mass, jv.T))
-    return ca.Function("tcp_mass", [sym.q, sym.tcp, m_sp, com], [0.5 * (lam + lam.T)],
-                       ["q", "tcp", "spindle_mass", "spindle_com"], ["mass"])
-
-
-def tcp_mass(robot: Robot, q: np.ndarray, params: ModelParameters) -> np.ndarray:
-    """Cartesian translational mass at the TCP [kg], shape (3, 3), base axes (SPEC §5 `robot`)."""
-    f = _tcp_mass_function(robot)
-    return np.asarray(f(np.asarray(q, float), np.asarray(params.tcp, float), params.spindle_mass,
-                        np.asarray(params.spindle_com, float)), float)
-
-
-def pose_structure(robot: Robot, params: ModelParameters, q: np.ndarray, cut: Cut, feed: float,
-                   damping_ratio: float = DEFAULT_DAMPING_RATIO) -> Structure:
-    """The 2-DOF structure at joints ``q`` [rad] for ``cut`` at ``feed`` [m/s].
-
-    K is the (CCT, if ``params.cct``) translational stiffness under the mean cutting force at this
-    feed, M the robot's Cartesian mass; both projected on (X_o, Z_o) and symmetrised.
-    """
-    f = point_function(robot, "oriented", "isotropic", outputs=("stiffness",))
-    k_t = np.asarray(f(np.asarray(q, float), cut.vector(), feed, params.vector()), float)
-    if not np.all(np.isfinite(k_t)):
-        raise InputError("pose", "the stiffness is not finite here (singular pose)")
-    plane = np.column_stack([cut.radial_dir, cut.feed_dir])
-    k2 = plane.T @ k_t @ plane
-    m2 = plane.T @ tcp_mass(robot, q, params) @ plane
-    k2, m2 = 0.5 * (k2 + k2.T), 0.5 * (m2 + m2.T)
-    return Structure(m2, k2, modal_damping(m2, k2, damping_ratio), plane, damping_ratio)
-
-
-# --------------------------------------------------------------------------------------------------
-# Cutter geometry over one tooth period
-# --------------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class CutterGeometry:
-    """Edge-slice angles at the ``steps`` instants of one tooth period. Arrays (steps, N·S).
-
-    Row p holds every (flute, slice) at time p·dt; with identical flutes the set of angles repeats
-    every tooth period, so row p also indexes the surface memory (the previous edge at the same
-    angle and height passed exactly one tooth period, ``steps`` rows, earlier).
-
-    Attributes:
-        cos, sin: cos φ, sin φ of each edge slice.
-        engaged: φ (mod 2π) inside the engaged arc [φ_st, φ_ex].
-        width: axial width b of each slice [m].
-        tooth_period: T = 2π/(NΩ) [s].
-        steps: steps per tooth period.
-    """
-
-    cos: np.ndarray
-    sin: np.ndarray
-    engaged: np.ndarray
-    width: np.ndarray
-    tooth_period: float
-    steps: int
-
-    @property
-    def dt(self) -> float:
-        """Step [s]."""
-        return self.tooth_period / self.steps
-
-
-def cutter_geometry(cut: Cut, helix_angle: float, steps: int, slices: int = DEFAULT_SLICES,
-                    offset: float = 0.0) -> CutterGeometry:
-    """Angles of every edge slice over one tooth period (``steps`` instants), SPEC §4 conventions.
-
-    Args:
-        cut: the cut (a_e, a_p, mode, spindle speed, flutes, radius).
-        helix_angle: [rad]; slice j (height (j + ½)·a_p/S) lags by height·tan(helix)/R.
-        steps: instants per tooth period.
-        slices: axial slices S.
-        offset: instants at (p + offset)·dt (0.5: the midpoints the Floquet integrator uses).
-    """
-    if steps < 4 or slices < 1:
-        raise InputError("discretisation", f"need >= 4 steps per tooth and >= 1 slice, got "
-                         f"{steps}, {slices}")
-    n_fl = int(cut.flutes)
-    phi_st, phi_ex = (float(a) for a in cutting.immersion_angles(cut.a_e, cut.radius, cut.mode))
-    period = 2.0 * np.pi / (n_fl * cut.spindle_speed)
-    height = (np.arange(slices) + 0.5) * cut.a_p / slices
-    lag = height * math.tan(helix_angle) / cut.radius
-    t = (np.arange(steps) + offset) * (2.0 * np.pi / n_fl / steps)
-    flute = np.arange(n_fl) * (2.0 * np.pi / n_fl)
-    phi = t[:, None, None] + flute[None, :, None] - lag[None, None, :]
-    phi = np.mod(phi, 2.0 * np.pi).reshape(steps, n_fl * slices)
-    engaged = (phi >= phi_st) & (phi <= phi_ex)
-    width = np.full(phi.shape, cut.a_p / slices)
-    return CutterGeometry(np.cos(phi), np.sin(phi), engaged, width, period, steps)
 
 
 # --------------------------------------------------------------------------------------------------

@@ -32,17 +32,11 @@ import numpy as np
 
 from models import cutting
 from models.analysis import Cut, ModelParameters, path_inputs, point_function
-from models.dynamics import (
-    DEFAULT_DAMPING_RATIO,
-    DEFAULT_SLICES,
-    Structure,
-    _tcp_mass_function,
-    cutter_geometry,
-    modal_damping,
-    process_stiffness_series,
-)
+from models.cutter_geometry import DEFAULT_SLICES, cutter_geometry
+from models.dynamics import process_stiffness_series
 from models.errors import InputError
 from models.robot import Robot
+from models.structure import DEFAULT_DAMPING_RATIO, Structure, modal_damping, tcp_mass_function
 
 __all__ = [
     "DEFAULT_FLOQUET_STEPS",
@@ -222,7 +216,7 @@ def path_floquet(robot: Robot, params: ModelParameters, q: np.ndarray, cuts: np.
     q, cuts, feeds, n = path_inputs(q, cuts, feeds)
     k_fun = point_function(robot, "oriented", "isotropic", outputs=("stiffness",)).map(n)
     k_t = np.asarray(k_fun(q.T, cuts.T, feeds.reshape(1, -1), params.vector()), float)
-    m_fun = _tcp_mass_function(robot).map(n)
+    m_fun = tcp_mass_function(robot).map(n)
     lam = np.asarray(m_fun(q.T, np.asarray(params.tcp, float), params.spindle_mass,
                            np.asarray(params.spindle_com, float)), float)
     structures, cut_list = [], []

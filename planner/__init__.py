@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 #: of the package (the plan file, the supervisor) does not load the rest.
 _SOURCES = {
     "CheckReport": "planner.check",
+    "DemoError": "planner.demo",
     "ExportError": "planner.export",
     "Job": "planner.job",
     "JobError": "planner.job",
@@ -59,11 +60,48 @@ _SOURCES = {
     "write_plan_outputs": "planner.outputs",
 }
 
-__all__ = sorted(_SOURCES)
+__all__ = [
+    "CheckReport",
+    "DemoError",
+    "ExportError",
+    "Job",
+    "JobError",
+    "KrlOptions",
+    "Limits",
+    "Plan",
+    "PlanFileError",
+    "PlanInfeasibleError",
+    "PlanOutputs",
+    "PlanResult",
+    "PlanSamples",
+    "PlanSection",
+    "PlanSolverError",
+    "Prepared",
+    "ReportRenderError",
+    "SessionSummary",
+    "Supervisor",
+    "SupervisorConfig",
+    "TimingError",
+    "check_plan",
+    "check_result",
+    "export_plan",
+    "load_job",
+    "load_plan",
+    "parse_job",
+    "plan_job",
+    "plan_of_result",
+    "plan_prepared",
+    "plan_to_krl",
+    "prepare",
+    "run_demo",
+    "run_plan_job",
+    "run_session",
+    "write_plan_outputs",
+]
 
 if TYPE_CHECKING:  # for type checkers and IDEs: the same names, imported eagerly
     from planner.check import CheckReport, check_plan, check_result
-    from planner.demo import run_demo
+    from planner.demo import DemoError, run_demo
     from planner.export import ExportError, export_plan, plan_to_krl
     from planner.job import Job, JobError, load_job, parse_job
     from planner.limits import Limits

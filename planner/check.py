@@ -26,8 +26,9 @@ from planner.sections import CUT, RAPID, kind_runs, step_lengths
 
 __all__ = ["ARC_POINTS", "CheckReport", "REL_TOL", "SPEED_TOL", "Violation", "check_plan", "check_result"]
 
-#: Relative tolerance of a limit check [-]: the planner's ceilings sit on the feasible side of a
-#: 0.07 % bisection bracket, so a real violation is far larger than floating-point noise.
+#: Relative tolerance of a limit check [-]: the planner's ceilings are the feasible end of a
+#: regula-falsi bracket of 0.1 % (planner.ceilings.CEILING_RTOL), so a real violation is far larger
+#: than floating-point noise.
 REL_TOL = 1e-9
 #: Points of the numerical power integral over the engaged arc (trapezoids; error ≪ 0.1 %).
 ARC_POINTS = 721
@@ -140,7 +141,8 @@ def check_plan(prep: Prepared, feed: np.ndarray, kinds: np.ndarray, speed: np.nd
         if kind == RAPID:
             continue
         if not (limits.feed_min * (1 - REL_TOL) <= f <= limits.feed_max * (1 + REL_TOL)):
-            viol.append(Violation(a, "feed_bounds", f, limits.feed_max, path.where(a)))
+            bound = limits.feed_min if f < limits.feed_min else limits.feed_max
+            viol.append(Violation(a, "feed_bounds", f, bound, path.where(a)))
     runs = kind_runs(kinds)
     run_of = np.zeros(len(path), int)
     for i, (a, b, _) in enumerate(runs):

@@ -3,8 +3,9 @@
 Validated with pydantic; every problem is reported in the user's terms — the table and key, what is
 wrong, how to fix it — and all problems at once. Units are part of the key names
 (``feed_max_mm_s``, ``tcp_mm``, ``base_abc_deg``); a key with a different unit suffix is an unknown
-key and the message suggests the known one. Everything is converted to SI by :meth:`Job.cell`
-and friends, never inside the models.
+key and the message suggests the known one. Everything is converted to SI once, by
+:meth:`Job.to_si` (and :meth:`planner.limits.Limits.from_job` for the limits), never inside the
+models.
 
 Example (see ``planner/data/demo/demo_job.toml`` for a complete one)::
 

@@ -171,6 +171,14 @@ def optimize_sections(runs: list[tuple[int, int, int]], ds: np.ndarray, ceiling:
     solver = ca.nlpsol("feeds", "ipopt", nlp, opts)
     lbx = np.concatenate([np.full(nc, feed_min / f_ref), np.zeros(ne)])
     ubx = np.concatenate([cap / f_ref, np.full(ne, np.inf)])
+    low = np.flatnonzero(cap < feed_min)
+    if low.size:  # no feed fits this cell: say so before IPOPT refuses LBX > UBX
+        k = int(low[0])
+        a, b = cells[k]
+        raise PlanSolverError("Infeasible_Bounds",
+                              f"cell {k} (samples {a}..{b - 1}): its ceiling {cap[k] * 1e3:.4g} mm/s "
+                              f"is below feed_min_mm_s {feed_min * 1e3:g}; lower feed_min_mm_s",
+                              section=k, constraint="feed_min")
     if warm is not None:
         x0 = np.array([np.nanmin(warm[a:b]) for a, b in cells]) / f_ref
     else:

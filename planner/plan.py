@@ -28,10 +28,10 @@ from typing import Any
 
 import numpy as np
 
-from models.errors import CctmillError
+from models.errors import CctmillError, InputError
 from planner.ceilings import CONSTRAINTS, Ceilings, Evaluation, PathModel
-from planner.limits import Limits
 from planner.job import Job
+from planner.limits import Limits
 from planner.optimize import SolveResult, optimize_sections
 from planner.partition import cut_time_bound, fastest_splits
 from planner.plan_file import KINDS, Plan, PlanSamples, PlanSection, SectionCharacteristic, SolverRecord
@@ -48,7 +48,7 @@ from planner.sections import (
     step_lengths,
 )
 from planner.thesis_sections import thesis_sections
-from planner.timing import Timing, time_path
+from planner.timing import ROBOT_LIMITED_SECTION, Timing, time_path
 from robot_io.krl.reader import matrices_to_abc
 
 __all__ = [
@@ -56,7 +56,6 @@ __all__ = [
     "METHODS",
     "PlanInfeasibleError",
     "PlanResult",
-    "ROBOT_SECTION",
     "plan_job",
     "plan_of_result",
     "plan_prepared",
@@ -64,8 +63,6 @@ __all__ = [
 ]
 
 METHODS = ("optimize", "thesis", "constant")
-#: A section whose timed mean speed falls below this fraction of its feed is robot-limited [-].
-ROBOT_SECTION = 0.9
 #: Feeds of each cut section's stored stability characteristic (log-spaced over the feed range).
 CHARACTERISTIC_FEEDS = 25
 
@@ -233,11 +230,11 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
         progress: show progress bars on stderr (long jobs).
     """
     if method not in METHODS:
-        raise CctmillError(f"--method: {method!r} is not one of {', '.join(METHODS)}")
+        raise InputError("method", f"{method!r} is not one of {', '.join(METHODS)}")
     job = prep.job
     sf = job.plan.safety_factor if safety_factor is None else float(safety_factor)
     if not (np.isfinite(sf) and sf >= 1.0):
-        raise CctmillError(f"--safety-factor: must be a number >= 1, got {sf}")
+        raise InputError("safety_factor", f"must be a number >= 1, got {sf}")
     walls: dict[str, float] = {}
     t = time.perf_counter()
     prep.kinematics.raise_if_unreachable()
@@ -338,7 +335,7 @@ def _plan_sections(res: PlanResult, ceiling: np.ndarray,
         a, b = sec.start, sec.stop
         length = float(ds[a:b].sum())
         t_sec = float(timing.time[b - 1] - (timing.time[a - 1] if a > 0 else 0.0))
-        robot_limited = bool(length > 0 and t_sec > 0 and length / t_sec < ROBOT_SECTION * sec.feed)
+        robot_limited = bool(length > 0 and t_sec > 0 and length / t_sec < ROBOT_LIMITED_SECTION * sec.feed)
         row: dict[str, Any] = {
             "index": i, "kind": KINDS[sec.kind], "sample_start": a, "sample_stop": b,
             "s_start": float(path.s[a - 1] if a > 0 else path.s[0]),

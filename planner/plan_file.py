@@ -17,7 +17,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -55,8 +55,7 @@ KINDS = ("cut", "air", "rapid")
 #: and degrees; 1e-9 mm / 1e-9° keeps what the user wrote and drops the float noise of mm → m → mm.
 FRAME_DECIMALS = 9
 
-#: Arrays every ``samples.npz`` holds: file name → (attribute of :class:`PlanSamples`, factor
-#: from SI to the file's unit or ``"deg"``, trailing shape).
+#: Arrays every ``samples.npz`` holds: file name → trailing shape.
 SAMPLE_ARRAYS: dict[str, tuple[int, ...]] = {
     "s_m": (), "q_rad": (6,), "position_wp_m": (3,), "abc_wp_deg": (3,), "tool_axis_wp": (3,),
     "section": (), "kind": (), "arc": (), "move": (), "line": (), "source_file": (), "feed_mm_s": (),
@@ -137,16 +136,12 @@ class SectionCharacteristic:
     ok: np.ndarray | None = None
 
     def as_json(self) -> dict[str, Any]:
-        out: dict[str, Any] = {
-            "sample": self.sample, "feeds_mm_s": (self.feeds * 1e3).tolist(),
-            "margin_N_per_m": self.margin.tolist(), "gamma_deg": np.degrees(self.gamma).tolist(),
-            "force_N": self.force.tolist()}
-        if self.deflection is not None:
-            out["deflection_mm"] = (self.deflection * 1e3).tolist()
-        out["stable"] = self.stable.tolist()
-        if self.ok is not None:
-            out["ok"] = self.ok.tolist()
-        return out
+        out = {"sample": self.sample, "feeds_mm_s": (self.feeds * 1e3).tolist(),
+               "margin_N_per_m": self.margin.tolist(), "gamma_deg": np.degrees(self.gamma).tolist(),
+               "force_N": self.force.tolist(), "deflection_mm": _to_file(self.deflection, 1e3),
+               "stable": self.stable.tolist(), "ok": self.ok}
+        return {k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in out.items()
+                if v is not None}
 
     @classmethod
     def from_json(cls, d: dict[str, Any]) -> SectionCharacteristic:
@@ -378,10 +373,10 @@ def _frame_si(d: Any, which: str, where: str) -> tuple[tuple[float, ...], tuple[
     try:
         xyz = tuple(float(v) * 1e-3 for v in d["xyz_mm"])
         abc = tuple(math.radians(float(v)) for v in d["abc_deg"])
+        if len(xyz) != 3 or len(abc) != 3:
+            raise ValueError("3 values in each")
     except (KeyError, TypeError, ValueError) as e:
         raise PlanFileError(where, f"{which}_frame needs xyz_mm and abc_deg ({e})") from e
-    if len(xyz) != 3 or len(abc) != 3:
-        raise PlanFileError(where, f"{which}_frame needs 3 values in xyz_mm and in abc_deg")
     return xyz, abc
 
 
@@ -501,13 +496,6 @@ class Plan:
                 raise PlanFileError(where, f"section {d.get('index', k)} is malformed ({e})") from e
         base = _frame_si(doc.get("base_frame"), "base", where)
         tool = _frame_si(doc.get("tool_frame"), "tool", where)
-        known = {f.name for f in fields(cls)}
-        extra = {"job_folder": doc.get("job_folder", doc.get("job_file")),
-                 "files": tuple(doc.get("files") or ()), "spindle_rpm": doc.get("spindle_rpm"),
-                 "flutes": doc.get("flutes"), "material": doc.get("material"),
-                 "tool_diameter": _from_file(_opt(doc.get("tool_diameter_mm")), 1e3),
-                 "model": dict(doc.get("model") or {}), "process_time": _opt(doc.get("process_time_s")),
-                 "wall_times": dict(doc.get("wall_times_s") or {}), "summary": dict(doc.get("summary") or {})}
         sf = (doc.get("constraints") or {}).get("safety_factor")
         return cls(method=str(doc["method"]), job_name=str(doc.get("job_name") or "job"),
                    robot=str(doc.get("robot") or ""), base_xyz=base[0], base_abc=base[1],
@@ -515,8 +503,14 @@ class Plan:
                    limits=Limits.from_json(doc.get("constraints") or {}), sections=tuple(secs),
                    samples=PlanSamples.from_arrays(arrays), cycle_time=float(doc["cycle_time_s"]),
                    solver=SolverRecord.from_json(doc.get("solver") or {}),
-                   safety_factor=None if sf is None else float(sf), path=path,
-                   **{k: v for k, v in extra.items() if k in known})
+                   safety_factor=_opt(sf), path=path,
+                   job_folder=doc.get("job_folder", doc.get("job_file")),
+                   files=tuple(doc.get("files") or ()), spindle_rpm=doc.get("spindle_rpm"),
+                   flutes=doc.get("flutes"), material=doc.get("material"),
+                   tool_diameter=_from_file(_opt(doc.get("tool_diameter_mm")), 1e3),
+                   model=dict(doc.get("model") or {}), process_time=_opt(doc.get("process_time_s")),
+                   wall_times=dict(doc.get("wall_times_s") or {}),
+                   summary=dict(doc.get("summary") or {}))
 
 
 def _resolve(path: str | os.PathLike) -> Path:

@@ -20,8 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = [
-    "CUT",
     "AIR",
+    "CUT",
     "RAPID",
     "Section",
     "kind_runs",

@@ -29,6 +29,7 @@ from models.errors import CctmillError
 
 __all__ = [
     "ROBOT_LIMITED",
+    "ROBOT_LIMITED_SECTION",
     "Timing",
     "TimingError",
     "shape_feed",
@@ -38,6 +39,10 @@ __all__ = [
 
 #: ṡ below this fraction of the shaped feed bound counts as robot-limited [-].
 ROBOT_LIMITED = 0.98
+#: A *section* is robot-limited when its timed mean speed falls below this fraction of its feed
+#: [-]. Looser than the per-sample rule above on purpose: the mean includes the ruckig-shaped feed
+#: changes at both ends of the section, which slow it even where the joints limit nothing.
+ROBOT_LIMITED_SECTION = 0.9
 #: Consecutive samples closer than this along the path are merged for the spline [m] (a spline
 #: needs strictly increasing knots; CAM programs repeat points).
 KNOT_TOL = 1e-7

@@ -1,4 +1,6 @@
-"""One entry point for every toolpath format: pick the reader by extension, else by content."""
+"""The toolpath reader registry: one entry point for every format, the reader picked by extension,
+else by content. Built from the reader classes (their ``format``, ``suffixes`` and ``sniff``), so
+a format's extensions are written once, in its reader."""
 
 from __future__ import annotations
 
@@ -6,16 +8,18 @@ import os
 from pathlib import Path
 from typing import Any
 
-from robot_io.toolpath import Toolpath, ToolpathError
+from robot_io.apt.reader import AptReader
+from robot_io.gcode.reader import GcodeReader
+from robot_io.krl.reader import KrlReader
+from robot_io.toolpath import Toolpath, ToolpathError, ToolpathReader
 
-__all__ = ["FORMATS", "detect_format", "read_toolpath"]
+__all__ = ["FORMATS", "READERS", "detect_format", "read_toolpath"]
 
+#: Every reader by format, in the order their content is sniffed (APT and KRL words are more
+#: specific than G-code's).
+READERS: dict[str, ToolpathReader] = {r.format: r for r in (AptReader(), KrlReader(), GcodeReader())}
 #: Known formats and the file extensions that announce them.
-FORMATS: dict[str, tuple[str, ...]] = {
-    "gcode": (".nc", ".ngc", ".gcode", ".gc", ".tap", ".cnc", ".mpf", ".eia"),
-    "apt": (".apt", ".cl", ".cls", ".aptsource"),
-    "krl": (".src",),
-}
+FORMATS: dict[str, tuple[str, ...]] = {name: r.suffixes for name, r in READERS.items()}
 
 #: How many bytes of a file are looked at to guess its format.
 _SNIFF_BYTES = 4096
@@ -25,19 +29,16 @@ def detect_format(path: str | os.PathLike) -> str:
     """``"gcode"``, ``"apt"`` or ``"krl"`` from the extension, else from the first few KiB."""
     p = Path(path)
     ext = p.suffix.lower()
-    for fmt, exts in FORMATS.items():
-        if ext in exts:
+    for fmt, reader in READERS.items():
+        if ext in reader.suffixes:
             return fmt
     try:
         head = p.read_bytes()[:_SNIFF_BYTES].decode("utf-8", "replace").upper()
     except OSError as e:
         raise ToolpathError(str(p), 0, 0, f"cannot read: {e.strerror}") from e
-    if "GOTO/" in head or "FEDRAT/" in head or "PARTNO" in head:
-        return "apt"
-    if "DEF " in head and ("LIN " in head or "PTP " in head or "END" in head):
-        return "krl"
-    if any(w in head for w in ("G0", "G1", "G2", "G3", "G90", "G21", "G20")):
-        return "gcode"
+    for fmt, reader in READERS.items():
+        if reader.sniff(head):
+            return fmt
     raise ToolpathError(str(p), 1, 0, "unknown toolpath format; name the file .nc/.ngc (G-code), "
                         ".apt/.cl (APT/CL) or .src (KUKA KRL), or pass format=")
 
@@ -56,16 +57,7 @@ def read_toolpath(path: str | os.PathLike, strict: bool = True, format: str | No
     if not p.is_file():
         raise ToolpathError(str(p), 0, 0, "no such file")
     fmt = format or detect_format(p)
-    if fmt == "gcode":
-        from robot_io.gcode import read_gcode
-
-        return read_gcode(str(p), strict=strict, **options)
-    if fmt == "apt":
-        from robot_io.apt import read_apt
-
-        return read_apt(str(p), strict=strict, **options)
-    if fmt == "krl":
-        from robot_io.krl.reader import read_krl
-
-        return read_krl(str(p), strict=strict, **options)
-    raise ToolpathError(str(p), 0, 0, f"unknown format {fmt!r}; use one of {', '.join(FORMATS)}")
+    reader = READERS.get(fmt)
+    if reader is None:
+        raise ToolpathError(str(p), 0, 0, f"unknown format {fmt!r}; use one of {', '.join(READERS)}")
+    return reader.read(str(p), strict=strict, **options)

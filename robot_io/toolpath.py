@@ -365,7 +365,20 @@ def check_option_names(options_class: type, options: dict[str, Any], reader: str
 
 
 class ToolpathReader(Protocol):
-    """What every reader module offers."""
+    """What every reader offers (:data:`robot_io.readers.READERS` is built from them).
+
+    Attributes:
+        format: the format's name (``"gcode"``, ``"apt"``, ``"krl"``).
+        suffixes: the file extensions that announce it (lower case, with the dot).
+    """
+
+    format: str
+    suffixes: tuple[str, ...]
+
+    @staticmethod
+    def sniff(head: str) -> bool:
+        """Whether the first KiB of a file (upper-cased) look like this format."""
+        ...
 
     def read(self, path: str, strict: bool = True, **options: Any) -> Toolpath:
         """Read ``path`` into a :class:`Toolpath`; strict mode raises :class:`ToolpathError`."""

@@ -93,6 +93,27 @@ def rng() -> np.random.Generator:
     return np.random.default_rng(SEED)
 
 
+@pytest.fixture(scope="session")
+def demo_prepared():
+    """The bundled demo job (``planner/data/demo``: outside contour of an Al 6061 bracket on the
+    KR 210, engagement from the stock), prepared. Shared by the session: do not modify it."""
+    # planner is imported here, not at the top, so the physics tests do not load it
+    from planner.demo import demo_job_file
+    from planner.job import load_job
+    from planner.prepare import prepare
+
+    return prepare(load_job(demo_job_file()))
+
+
+@pytest.fixture(scope="session")
+def demo_optimized(demo_prepared):
+    """The demo job planned by the optimiser (a :class:`planner.plan.PlanResult`). Shared by the
+    session: do not modify it (copy the feeds and sections first)."""
+    from planner.plan import plan_prepared
+
+    return plan_prepared(demo_prepared, "optimize")
+
+
 def _well_conditioned(robot: Robot, q: np.ndarray, tcp: np.ndarray, min_sigma: float) -> bool:
     """σ_min of [J_v; 0.25 m · J_ω] [m/rad] above ``min_sigma``: far from any singularity."""
     jac = np.asarray(robot.jacobian_function(q, tcp), float)

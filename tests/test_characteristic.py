@@ -21,7 +21,6 @@ from planner.supervisor.characteristic import (
     stabilising_direction,
 )
 
-
 MM = 1e-3  # mm/s → m/s
 
 

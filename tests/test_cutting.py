@@ -9,7 +9,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from models import cutting
+from models import cutting, tooling
 from models.cutting import (
     MILLING_MODES,
     Material,
@@ -357,7 +357,7 @@ def test_malformed_data_files(
 ) -> None:
     (tmp_path / kind).mkdir()
     (tmp_path / kind / "bad.toml").write_text(text, encoding="utf-8")
-    monkeypatch.setattr(cutting, "_data_dir", lambda k: tmp_path / k)
+    monkeypatch.setattr(tooling, "_data_dir", lambda k: tmp_path / k)
     loader = load_material if kind == "materials" else load_tool
     with pytest.raises(DataFileError, match=match) as info:
         loader("bad")

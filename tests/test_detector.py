@@ -108,7 +108,7 @@ def test_control_limit_from_false_alarm_rate():
 
 @pytest.mark.parametrize("alpha", [0.0, 1.0, -1e-3, float("nan")])
 def test_control_limit_rejects(alpha):
-    with pytest.raises(InputError, match="alpha-f"):
+    with pytest.raises(InputError, match="alpha_f"):
         control_limit(alpha)
 
 

@@ -17,6 +17,7 @@ from models.dynamics import (
     simulate,
 )
 from models.errors import InputError
+from models.floquet import floquet
 
 CASE1_Q = np.radians([-96.42, -29.26, 99.08, -9.95, 83.23, -160.5])
 MAT = load_material("al6061")
@@ -125,20 +126,66 @@ def test_pose_structure_is_the_point_models_plane_block():
     np.testing.assert_allclose(st.natural_frequencies_hz, np.sort(a.natural_frequencies), rtol=1e-6)
 
 
-@pytest.mark.parametrize("a_p", [5.08e-3, 1.0e-3])
-def test_iteration_matters_on_the_thesis_kind_of_cut(a_p):
-    """Case 1's pose and cut (up milling, 1000 rpm, 1 mm/s) with regeneration: the equilibrium chip
-    gives a lower F_peak and F_PV than the first iteration (rigid-chip response, one update)."""
+#: a_p of the thesis's Case 1 [m], and the shallower cut the iteration test also runs [m].
+CASE1_AP = 5.08e-3
+SHALLOW_AP = 1.0e-3
+#: Simulated durations [s] of the iteration tests. F_peak and F_PV are taken over the last half of
+#: the run, and on Case 1 their comparison flips with it: equilibrium / first-iteration F_peak
+#: 3,505 / 819 N at 1 s, 48.7 / 801 N at 2 s, 2,008 / 801 N at 3 s, 2,564 / 800 N at 4 s (at a_p
+#: 1 mm: 83 / 61 N at 1 s, 81 / 111 N at 2 s). What these tests assert holds at every one.
+ITERATION_DURATIONS = (1.0, 2.0, 3.0, 4.0)
+
+
+@pytest.fixture(scope="module")
+def iteration_runs():
+    """``run(a_p, duration) -> (Floquet verdict, iterated run, first-iteration run)`` on Case 1's
+    pose and cut (up milling, 1000 rpm, 1 mm/s, regeneration on, the simulation's defaults),
+    cached for the module."""
     robot, params = _params()
-    cut = _cut(a_p=a_p)
-    st = pose_structure(robot, params, CASE1_Q, cut, 1e-3)
-    conv = simulate(st, cut, 1e-3, MAT, TOOL.helix_angle, duration=2.0)
-    first = simulate(st, cut, 1e-3, MAT, TOOL.helix_angle, duration=2.0, iterate=False)
+    cache = {}
+
+    def run(a_p, duration):
+        if (a_p, duration) not in cache:
+            cut = _cut(a_p=a_p)
+            st = pose_structure(robot, params, CASE1_Q, cut, 1e-3)
+            fl = floquet(st, cut, MAT, TOOL.helix_angle)
+            conv = simulate(st, cut, 1e-3, MAT, TOOL.helix_angle, duration=duration)
+            first = simulate(st, cut, 1e-3, MAT, TOOL.helix_angle, duration=duration, iterate=False)
+            cache[a_p, duration] = (fl, conv, first)
+        return cache[a_p, duration]
+
+    return run
+
+
+@pytest.mark.parametrize("duration", ITERATION_DURATIONS)
+@pytest.mark.parametrize("a_p", [CASE1_AP, SHALLOW_AP])
+def test_iteration_speeds_the_chatter_of_the_thesis_cut_at_every_window(iteration_runs, a_p,
+                                                                        duration):
+    """Case 1's cut chatters with and without the equilibrium chip, and the chip feedback the first
+    iteration lacks makes the vibration grow faster (growth +11.7 vs +9.0 1/s; +4.3 vs +2.5 1/s at
+    a_p 1 mm). The growth is fitted over the first tooth periods, so unlike F_peak of the last
+    half-run (ITERATION_DURATIONS) it does not depend on the duration; on Case 1 the entry transient
+    is past the linear regime from the second period, so only the sign and the order are asserted."""
+    fl, conv, first = iteration_runs(a_p, duration)
     assert conv.unconverged_steps == 0
     assert conv.iterations_mean > 1.0
     assert first.iterations_mean == 1.0
-    assert conv.f_peak < 0.8 * first.f_peak
-    assert conv.f_pv < 0.9 * first.f_pv
+    # the time-periodic cut is unstable even without regeneration (Floquet rho 1.395 and 1.047)
+    assert fl.spectral_radius > 1.0
+    assert first.growth_rate > 0.0
+    # measured ratios 1.30 (Case 1) and 1.71 (a_p 1 mm): 1.2 keeps the ordering clear of a tie
+    assert conv.growth_rate > 1.2 * first.growth_rate
+
+
+@pytest.mark.parametrize("duration", ITERATION_DURATIONS)
+def test_iterated_thesis_cut_leaves_the_material_in_every_window(iteration_runs, duration):
+    """Why F_peak of the last half-run is noise on Case 1: once the vibration saturates, the
+    iterated tool is out of the material for whole tooth periods (up to a second at a time: 32 of
+    the 33 periods of the 1-2 s window carry no force), so the window's F_peak is whichever
+    re-entry burst it catches; the first iteration stays in the cut (every period above 90 N)."""
+    _, conv, first = iteration_runs(CASE1_AP, duration)
+    assert np.mean(conv.tooth_peaks == 0.0) > 0.25
+    assert first.tooth_peaks.min() > 0.1 * first.f_peak
 
 
 def test_stable_cut_settles_to_a_tooth_periodic_force():

@@ -565,8 +565,8 @@ def _same(a, b) -> bool:
 
 def _read_both_ways(text: str, strict: bool, **kw):
     """(bulk, interpreter-only) outcomes: a Toolpath or the ToolpathError message."""
-    from robot_io.gcode._interp import run_program
     from robot_io.gcode import GcodeOptions
+    from robot_io.gcode._interp import run_program
 
     out = []
     for plain in (True, False):

@@ -9,8 +9,8 @@ import pytest
 from models.errors import UnreachablePoseError
 from models.robot import load_robot
 from planner.ik import IKOptions, solve_path
-from robot_io.krl.frames import frame_from_mm_deg as frame_matrix
 from planner.path import sample_toolpath
+from robot_io.krl.frames import frame_from_mm_deg as frame_matrix
 from robot_io.toolpath import Move, MoveKind, SourceRef, Toolpath
 
 TOOL = frame_matrix([320.0, 0.0, 0.0], [0.0, 0.0, 0.0])

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from _threads import no_leaked_threads, wait_for  # noqa: F401  (autouse fixture)
 
+from robot_io.links.base import LinkError, ProtocolError, RobotLink
 from robot_io.links.kvp import (
     FN_READ,
     FN_WRITE,
@@ -28,7 +29,6 @@ from robot_io.links.kvp import (
     read_reply,
 )
 from robot_io.links.kvp_sim import KvpSimServer
-from robot_io.links.base import LinkError, ProtocolError, RobotLink
 
 py_openshowvar = pytest.importorskip("py_openshowvar")
 

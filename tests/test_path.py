@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from robot_io.krl.frames import frame_from_mm_deg as frame_matrix
 from planner.path import sample_toolpath
+from robot_io.krl.frames import frame_from_mm_deg as frame_matrix
 from robot_io.toolpath import Move, MoveKind, SourceRef, Toolpath
 
 

@@ -14,12 +14,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from planner.ceilings import CONSTRAINTS
 from planner.check import check_result
 from planner.cli import main
-from planner.ceilings import CONSTRAINTS
 from planner.job import parse_job
-from planner.partition import fastest_split, split_time
 from planner.outputs import write_plan_outputs
+from planner.partition import fastest_split, split_time
 from planner.plan import PlanInfeasibleError, plan_prepared
 from planner.plan_file import BINDINGS, SAMPLE_ARRAYS, load_plan
 from planner.prepare import prepare

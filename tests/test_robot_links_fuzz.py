@@ -18,6 +18,7 @@ except ImportError:  # pragma: no cover - depends on how pytest imports tests/
     from tests.conftest import mutate
 from _threads import no_leaked_threads, wait_for  # noqa: F401  (autouse fixture)
 
+from robot_io.links.base import ProtocolError
 from robot_io.links.kvp import (
     FN_READ,
     FN_WRITE,
@@ -32,7 +33,6 @@ from robot_io.links.kvp import (
     read_reply,
 )
 from robot_io.links.kvp_sim import KvpSimServer
-from robot_io.links.base import ProtocolError
 from robot_io.links.rsi import MAX_PACKET_BYTES, RsiServer, build_rob, build_sen, parse_rob, parse_sen
 from robot_io.links.rsi_sim import RsiSimController
 

@@ -9,8 +9,8 @@ import time
 import numpy as np
 import pytest
 
-from robot_io.signals.replay import ReplaySource, SignalFileError, load_signal
 from robot_io.signals.base import SignalSource
+from robot_io.signals.replay import ReplaySource, SignalFileError, load_signal
 from robot_io.signals.udp import (
     HEADER,
     MAGIC,
@@ -34,7 +34,7 @@ def test_csv_with_header_and_time_column(tmp_path):
 def test_csv_single_column_needs_rate(tmp_path):
     p = tmp_path / "s.csv"
     p.write_text("1\n2\n3\n", encoding="utf-8")
-    with pytest.raises(SignalFileError, match="--fs-hz"):
+    with pytest.raises(SignalFileError, match="fs_hz"):
         load_signal(p)
     t, v = load_signal(p, fs_hz=1000.0)
     np.testing.assert_allclose(t, [0.0, 0.001, 0.002])

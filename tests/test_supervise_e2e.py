@@ -20,14 +20,14 @@ import pytest
 from _plans import make_plan
 
 from planner.cli import main
-from planner.supervisor.session import simulated_sigma
-from planner.supervisor.event_log import EventLog
 from planner.plan_file import load_plan
-from planner.supervisor.sim_cell import SimCell
-from planner.supervisor.sim_cut import CutScenario
+from planner.supervisor import Supervisor, SupervisorConfig
+from planner.supervisor.event_log import EventLog
 from planner.supervisor.loop import run_loop
 from planner.supervisor.metrics import episode_metrics
-from planner.supervisor import Supervisor, SupervisorConfig
+from planner.supervisor.session import simulated_sigma
+from planner.supervisor.sim_cell import SimCell
+from planner.supervisor.sim_cut import CutScenario
 from robot_io.links.kvp_sim import KvpSimServer
 from robot_io.signals.udp import UdpSignalSender
 

@@ -12,15 +12,15 @@ import numpy as np
 import pytest
 from _plans import FEED_STEP, ONE_SECTION, make_plan
 
+from planner.plan_file import load_plan
+from planner.supervisor import STATUSES, Supervisor, SupervisorConfig
 from planner.supervisor.detector import Detector, select_level
 from planner.supervisor.event_log import EventLog
-from planner.plan_file import load_plan
-from planner.supervisor.sim_cut import CutScenario, SimulatedCut
 from planner.supervisor.loop import VirtualClock, run_loop
-from planner.supervisor import STATUSES, Supervisor, SupervisorConfig
+from planner.supervisor.sim_cut import CutScenario, SimulatedCut
 from robot_io.links.base import LinkStats, LinkStatus
-from robot_io.signals.replay import ReplaySource
 from robot_io.signals.base import SignalChunk
+from robot_io.signals.replay import ReplaySource
 
 FS = 10_000.0
 DT = 0.004

@@ -19,14 +19,15 @@ import json
 from models.errors import InputError
 from planner.plan_file import load_plan
 from planner.supervisor.policy import SupervisorConfig
-from planner.supervisor.session import SessionConfig, SessionSummary, supervise
+from planner.supervisor.session import SessionConfig, supervise
 from planner.supervisor.sim_cut import CutScenario
 
 __all__ = ["register", "run"]
 
 #: Flags of the library's fields, for messages that name a field.
-_FLAGS = {"cycle": "--cycle-ms", "duration": "--duration-s", "fs_hz": "--fs-hz", "sigma": "--sigma",
-          "robot": "--robot", "signal": "--signal", "sim_protocol": "--sim-protocol"}
+_FLAGS = {"alpha_f": "--alpha-f", "cycle": "--cycle-ms", "duration": "--duration-s",
+          "fs_hz": "--fs-hz", "sigma": "--sigma", "robot": "--robot", "signal": "--signal",
+          "sim_protocol": "--sim-protocol"}
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -8,31 +8,9 @@ whole supervised run (:mod:`~planner.supervisor.session`), the event log, metric
 simulated cut and cell used to test it without a robot (:mod:`~planner.supervisor.sim_cut`,
 :mod:`~planner.supervisor.sim_cell`)."""
 
-from planner.supervisor.policy import (
-    Episode,
-    STATUSES,
-    StepResult,
-    StepStatus,
-    Supervisor,
-    SupervisorConfig,
-)
-from planner.supervisor.detector import (
-    BandMonitor,
-    DEFAULT_WAVELET,
-    Detector,
-    DetectorOutput,
-    EDGE_OCTAVES,
-    LevelChoice,
-    OVERSAMPLE,
-    TRANSIENT_GAIN,
-    TRANSIENT_SLACK_S,
-    control_limit,
-    detail_filter,
-    select_level,
-)
 from planner.supervisor.characteristic import (
-    Characteristic,
     FLAT_MARGIN_REL,
+    Characteristic,
     characteristic_of,
     chatter_frequency,
     feed_limit_for_force,
@@ -40,13 +18,27 @@ from planner.supervisor.characteristic import (
     margin_at,
     stabilising_direction,
 )
+from planner.supervisor.detector import (
+    DEFAULT_WAVELET,
+    EDGE_OCTAVES,
+    OVERSAMPLE,
+    TRANSIENT_GAIN,
+    TRANSIENT_SLACK_S,
+    BandMonitor,
+    Detector,
+    DetectorOutput,
+    LevelChoice,
+    control_limit,
+    detail_filter,
+    select_level,
+)
+from planner.supervisor.event_log import (
+    EventLog,
+)
 from planner.supervisor.loop import (
     LoopReport,
     VirtualClock,
     run_loop,
-)
-from planner.supervisor.event_log import (
-    EventLog,
 )
 from planner.supervisor.metrics import (
     EpisodeMetrics,
@@ -57,14 +49,22 @@ from planner.supervisor.plot import (
     RunTrace,
     plot_run,
 )
-from planner.supervisor.sim_cut import (
-    CutScenario,
-    CutTruth,
-    SimulatedCut,
+from planner.supervisor.policy import (
+    STATUSES,
+    Episode,
+    StepResult,
+    StepStatus,
+    Supervisor,
+    SupervisorConfig,
 )
 from planner.supervisor.sim_cell import (
     ROBOTS,
     SimCell,
+)
+from planner.supervisor.sim_cut import (
+    CutScenario,
+    CutTruth,
+    SimulatedCut,
 )
 
 __all__ = [

@@ -28,8 +28,8 @@ if TYPE_CHECKING:
 __all__ = [
     "FLAT_MARGIN_REL",
     "Characteristic",
-    "chatter_frequency",
     "characteristic_of",
+    "chatter_frequency",
     "feed_limit_for_force",
     "force_at",
     "margin_at",

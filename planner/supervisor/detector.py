@@ -118,14 +118,14 @@ def select_level(fs_hz: float, chatter_hz: float, tooth_hz: float | None = None)
         InputError: non-positive or non-finite rates, or f_c at or above the Nyquist frequency.
     """
     if not (math.isfinite(fs_hz) and fs_hz > 0):
-        raise InputError("--fs-hz", f"sample rate must be positive, got {fs_hz}")
+        raise InputError("fs_hz", f"sample rate must be positive, got {fs_hz}")
     if not (math.isfinite(chatter_hz) and 0 < chatter_hz < fs_hz / 2):
         raise InputError("chatter frequency", f"{chatter_hz} Hz must lie in (0, f_s/2 = {fs_hz / 2} Hz):"
                          " raise the sample rate")
     jc = int(math.floor(math.log2(fs_hz / chatter_hz)))
     jc = max(1, jc)
     if jc > MAX_LEVEL:
-        raise InputError("--fs-hz", f"level {jc} needed for {chatter_hz} Hz at {fs_hz} Hz; lower the "
+        raise InputError("fs_hz", f"level {jc} needed for {chatter_hz} Hz at {fs_hz} Hz; lower the "
                          f"sample rate (at most level {MAX_LEVEL})")
     band = _band(fs_hz, jc)
     if not _inside(tooth_hz, band):
@@ -157,7 +157,7 @@ def control_limit(alpha_f: float) -> float:
         InputError: α_f outside (0, 1).
     """
     if not (math.isfinite(alpha_f) and 0 < alpha_f < 1):
-        raise InputError("--alpha-f", f"false-alarm rate must lie in (0, 1), got {alpha_f}")
+        raise InputError("alpha_f", f"false-alarm rate must lie in (0, 1), got {alpha_f}")
     return NormalDist().inv_cdf(1.0 - alpha_f / 2.0)
 
 

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from planner.supervisor import StepResult, Supervisor
+from planner.supervisor.policy import StepResult, Supervisor
 from robot_io.links.base import RobotLink
 from robot_io.signals.base import SignalSource, empty_chunk
 

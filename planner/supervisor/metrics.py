@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.supervisor.policy import Supervisor
 from planner.supervisor.sim_cut import CutTruth
-from planner.supervisor import Supervisor
 
 __all__ = ["EpisodeMetrics", "band_gain", "episode_metrics"]
 

@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from planner.report.plots import new_figure, save_figure
+from planner.supervisor.policy import StepResult
 from planner.supervisor.sim_cut import CutTruth
-from planner.supervisor import StepResult
 
 __all__ = ["RunTrace", "plot_run"]
 

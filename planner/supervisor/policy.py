@@ -39,14 +39,11 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 
-from planner.supervisor.detector import DEFAULT_WAVELET, Detector, select_level
-from planner.supervisor.event_log import EventLog
 from planner.plan_file import Plan, PlanSection
 from planner.supervisor.characteristic import (
     Characteristic,
@@ -56,13 +53,15 @@ from planner.supervisor.characteristic import (
     force_at,
     stabilising_direction,
 )
+from planner.supervisor.detector import DEFAULT_WAVELET, Detector, select_level
+from planner.supervisor.event_log import EventLog
 from robot_io.signals.base import SignalChunk
 
 __all__ = [
     "STATUSES",
-    "StepStatus",
     "Episode",
     "StepResult",
+    "StepStatus",
     "Supervisor",
     "SupervisorConfig",
 ]
@@ -475,7 +474,8 @@ class Supervisor:
                       + reason)
         target = min(max(target, floor), cap)
         open_ep = self.episodes[-1] if self.episodes and self.episodes[-1].end_s is None else None
-        fast_up = (open_ep is not None and open_ep.direction > 0 and status in (StepStatus.ALARM, StepStatus.QUIET))
+        fast_up = (open_ep is not None and open_ep.direction > 0
+                   and status in (StepStatus.ALARM, StepStatus.QUIET))
         self._advance(now)  # the state now, on the trajectory in force
         if abs(target - self._target) > TARGET_EPS_PCT or fast_up != self._fast_up:
             self._plan_traj(now, target, fast_up)

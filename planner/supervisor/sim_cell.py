@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import time
 
+from models.errors import InputError
 from planner.plan_file import Plan
 from planner.supervisor.sim_cut import CutScenario, SimulatedCut
 from robot_io.links.kvp import KvpClient
@@ -48,7 +49,7 @@ class SimCell:
                  scenario: CutScenario | None = None, cycle_s: float = 0.004,
                  kvp_timeout_s: float = 0.5, start_s: float = 0.0) -> None:
         if robot not in ROBOTS:
-            raise ValueError(f"robot {robot!r}: use one of {ROBOTS}")
+            raise InputError("sim_protocol", f"{robot!r}: use one of {', '.join(ROBOTS)}")
         self.robot = robot
         self.fs_hz = fs_hz
         self.cycle_s = cycle_s

@@ -1,8 +1,9 @@
 """A simulated cut whose chatter answers the override the controller really applies.
 
 This is the ``sim`` signal source of ``cctmill supervise`` and the plant of the end-to-end tests.
-It is built from the plan's stability characteristic (not from a time-domain simulation of the
-arm: ``models.dynamics`` was not available when this was written), so it is a *behavioural* model:
+It is built from the plan's stability characteristic, not from a time-domain simulation of the
+arm (:mod:`models.dynamics` runs at about 6–10 simulated seconds per wall second, too slow to be the
+plant of a 4 ms loop), so it is a *behavioural* model:
 
 - the path advances at the actual feed: planned section feed × applied override / 100, with a
   first-order lag ``feed_tau_s`` (the controller's path-speed response); the section follows from
@@ -41,7 +42,7 @@ from planner.supervisor.characteristic import (
     chatter_frequency,
     margin_at,
 )
-from robot_io.signals.base import SignalChunk, SourceStats, Backlog
+from robot_io.signals.base import Backlog, SignalChunk, SourceStats
 
 __all__ = ["CutScenario", "CutTruth", "SimulatedCut"]
 

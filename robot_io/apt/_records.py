@@ -10,6 +10,8 @@ from __future__ import annotations
 import re
 from collections.abc import Iterator
 
+from models.errors import CctmillError
+
 __all__ = [
     "ARC_MIN_RADIUS",
     "CYCLE_POSITION_TOL",
@@ -89,7 +91,7 @@ NONFINITE = frozenset({"NAN", "+NAN", "-NAN", "INF", "+INF", "-INF", "INFINITY",
 Vec = tuple[float, float, float]
 
 
-class Skip(Exception):
+class Skip(CctmillError):
     """Lenient mode: abandon the current record (already warned about and counted)."""
 
 

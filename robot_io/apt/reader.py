@@ -219,6 +219,11 @@ class AptReader:
     format = "apt"
     suffixes = (".apt", ".cl", ".cls", ".aptsource")
 
+    @staticmethod
+    def sniff(head: str) -> bool:
+        """Whether the first KiB of a file (upper-cased) look like APT/CL."""
+        return "GOTO/" in head or "FEDRAT/" in head or "PARTNO" in head
+
     def read(self, path: str, strict: bool = True, **options: Any) -> Toolpath:
         """Read ``path``; options as :func:`read_apt`."""
         return read_apt(path, strict=strict, **options)

@@ -207,7 +207,12 @@ class GcodeReader:
     """The G-code member of the ``ToolpathReader`` family."""
 
     format = "gcode"
-    suffixes = (".nc", ".ngc", ".gcode", ".tap", ".cnc")
+    suffixes = (".nc", ".ngc", ".gcode", ".gc", ".tap", ".cnc", ".mpf", ".eia")
+
+    @staticmethod
+    def sniff(head: str) -> bool:
+        """Whether the first KiB of a file (upper-cased) look like G-code."""
+        return any(w in head for w in ("G0", "G1", "G2", "G3", "G90", "G21", "G20"))
 
     def read(self, path: str, strict: bool = True, **options: Any) -> Toolpath:
         """Read ``path``; options as :func:`read_gcode`."""

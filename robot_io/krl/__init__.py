@@ -5,35 +5,26 @@ convention both use (:mod:`~robot_io.krl.frames`).
 Private parts: the writer's ``_text``, ``_pages``, ``_files``; the reader's ``_syntax``, ``_program``,
 ``_values``, ``_motion``, ``_interp``."""
 
-from robot_io.krl.writer import (
-    ANGLE_DECIMALS,
-    CONTROLLERS,
-    ControllerLimits,
-    FEED_DECIMALS,
-    KrlError,
-    KrlFrame,
-    KrlMove,
-    KrlOutput,
-    KrlProgramSpec,
-    KrlSection,
-    MOVE_KINDS,
-    OVERRIDE_HOOKS,
-    POSITION_DECIMALS,
-    ascii_comment,
-    render_krl,
-    sanitize_identifier,
-    write_krl,
+from robot_io.krl.frames import (
+    GIMBAL_TOL,
+    rotate_about,
+)
+from robot_io.krl.lint import (
+    LINT_PAGE_LINES,
+    MIN_FEED_DECIMALS,
+    LintProblem,
+    lint_krl,
 )
 from robot_io.krl.reader import (
     CIRC_COLLINEAR_SIN,
     CIRC_POINT_TOL,
-    KrlOptions,
-    KrlReader,
     MAX_CALL_DEPTH,
     MAX_EXECUTED_STATEMENTS,
     MAX_KRL_VALUE,
     MAX_WARNINGS_PER_CATEGORY,
     PLAUSIBLE_VEL_CP,
+    KrlOptions,
+    KrlReader,
     abc_to_matrix,
     circle_through,
     frame_matrix,
@@ -42,15 +33,24 @@ from robot_io.krl.reader import (
     read_krl,
     read_krl_text,
 )
-from robot_io.krl.lint import (
-    LINT_PAGE_LINES,
-    LintProblem,
-    MIN_FEED_DECIMALS,
-    lint_krl,
-)
-from robot_io.krl.frames import (
-    GIMBAL_TOL,
-    rotate_about,
+from robot_io.krl.writer import (
+    ANGLE_DECIMALS,
+    CONTROLLERS,
+    FEED_DECIMALS,
+    MOVE_KINDS,
+    OVERRIDE_HOOKS,
+    POSITION_DECIMALS,
+    ControllerLimits,
+    KrlError,
+    KrlFrame,
+    KrlMove,
+    KrlOutput,
+    KrlProgramSpec,
+    KrlSection,
+    ascii_comment,
+    render_krl,
+    sanitize_identifier,
+    write_krl,
 )
 
 __all__ = [

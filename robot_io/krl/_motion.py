@@ -16,6 +16,9 @@ from typing import Any
 
 import numpy as np
 
+from robot_io.krl._program import Stmt
+from robot_io.krl._syntax import Aggregate, LineError
+from robot_io.krl._values import CART
 from robot_io.krl.frames import (
     abc_to_matrix,
     circle_through,
@@ -23,9 +26,6 @@ from robot_io.krl.frames import (
     matrix_to_abc,
     rotate_about,
 )
-from robot_io.krl._program import Stmt
-from robot_io.krl._syntax import Aggregate, LineError
-from robot_io.krl._values import CART
 from robot_io.toolpath import Move, MoveKind, SourceRef, Toolpath
 
 __all__ = [

@@ -7,10 +7,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from models.errors import CctmillError
+
 __all__ = ["NoPageBreakError", "PageSection", "paginate", "section_lines"]
 
 
-class NoPageBreakError(Exception):
+class NoPageBreakError(CctmillError):
     """A page's worth of a section holds no place to break (only CIRCs)."""
 
     def __init__(self, section: int) -> None:

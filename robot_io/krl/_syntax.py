@@ -18,6 +18,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from models.errors import CctmillError
+
 __all__ = [
     "Aggregate",
     "Cursor",
@@ -54,7 +56,7 @@ _OPEN = {"{": "}", "[": "]", "(": ")"}
 _CLOSE = {v: k for k, v in _OPEN.items()}
 
 
-class LineError(Exception):
+class LineError(CctmillError):
     """A problem in one line: 1-based ``col``, ``reason`` (with the fix), counting ``category``."""
 
     def __init__(self, col: int, reason: str, category: str = "syntax") -> None:

@@ -98,15 +98,6 @@ from dataclasses import dataclass
 from typing import Any
 
 from models.errors import InputError
-from robot_io.krl.frames import (
-    CIRC_COLLINEAR_SIN,
-    CIRC_POINT_TOL,
-    abc_to_matrix,
-    circle_through,
-    frame_matrix,
-    matrices_to_abc,
-    matrix_to_abc,
-)
 from robot_io.krl._interp import (
     MAX_CALL_DEPTH,
     MAX_EXECUTED_STATEMENTS,
@@ -116,6 +107,15 @@ from robot_io.krl._interp import (
 from robot_io.krl._motion import PLAUSIBLE_VEL_CP
 from robot_io.krl._program import read_text
 from robot_io.krl._syntax import MAX_KRL_VALUE
+from robot_io.krl.frames import (
+    CIRC_COLLINEAR_SIN,
+    CIRC_POINT_TOL,
+    abc_to_matrix,
+    circle_through,
+    frame_matrix,
+    matrices_to_abc,
+    matrix_to_abc,
+)
 from robot_io.toolpath import Toolpath, ToolpathError, check_option_names
 
 __all__ = [
@@ -223,6 +223,11 @@ class KrlReader:
 
     format = "krl"
     suffixes = (".src",)
+
+    @staticmethod
+    def sniff(head: str) -> bool:
+        """Whether the first KiB of a file (upper-cased) look like a KRL routine."""
+        return "DEF " in head and ("LIN " in head or "PTP " in head or "END" in head)
 
     def read(self, path: str, strict: bool = True, **options: Any) -> Toolpath:
         """Read ``path``; options as :func:`read_krl`."""

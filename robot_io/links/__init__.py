@@ -5,11 +5,11 @@ KukaVarProxy (:mod:`~robot_io.links.kvp`, :mod:`~robot_io.links.kvp_sim`) and RS
 (:mod:`~robot_io.links.rsi`, :mod:`~robot_io.links.rsi_process`, :mod:`~robot_io.links.rsi_sim`)."""
 
 from robot_io.links.base import (
+    OVERRIDE_MAX_PERCENT,
+    OVERRIDE_MIN_PERCENT,
     LinkError,
     LinkStats,
     LinkStatus,
-    OVERRIDE_MAX_PERCENT,
-    OVERRIDE_MIN_PERCENT,
     ProtocolError,
     RobotLink,
     StatsCounter,
@@ -19,12 +19,12 @@ from robot_io.links.kvp import (
     FN_READ,
     FN_WRITE,
     KVP_DEFAULT_PORT,
+    MAX_BODY_BYTES,
+    OV_PRO,
     KvpClient,
     KvpConnection,
     KvpReply,
     KvpRequest,
-    MAX_BODY_BYTES,
-    OV_PRO,
     pack_reply,
     pack_request,
     parse_reply,
@@ -38,9 +38,9 @@ from robot_io.links.kvp_sim import (
 from robot_io.links.rsi import (
     IPOC_MAX,
     MAX_PACKET_BYTES,
+    SHORT_FIRST_PACKET_BYTES,
     RobTelegram,
     RsiServer,
-    SHORT_FIRST_PACKET_BYTES,
     SenTelegram,
     build_rob,
     build_sen,
@@ -48,8 +48,8 @@ from robot_io.links.rsi import (
     parse_sen,
 )
 from robot_io.links.rsi_process import (
-    RsiProcessServer,
     SYNC_PERIOD_S,
+    RsiProcessServer,
 )
 from robot_io.links.rsi_sim import (
     RsiSimController,

@@ -22,6 +22,7 @@ import time
 from dataclasses import dataclass
 
 from robot_io.links._sim_peer import SimulatedPathSpeed, SimulatedPeer
+from robot_io.links.base import LinkError, ProtocolError
 from robot_io.links.kvp import (
     FN_READ,
     FN_WRITE,
@@ -31,7 +32,6 @@ from robot_io.links.kvp import (
     pack_reply,
     parse_request,
 )
-from robot_io.links.base import LinkError, ProtocolError
 
 __all__ = ["KvpServerStats", "KvpSimServer"]
 
@@ -124,7 +124,7 @@ class KvpSimServer(SimulatedPeer):
             sock.bind((self.host, self.port))
         except OSError as e:
             sock.close()
-            raise LinkError("kvp-sim", f"cannot bind {self.host}:{self.port}: {e}; pick another --port "
+            raise LinkError("kvp-sim", f"cannot bind {self.host}:{self.port}: {e}; pick another port "
                                        "or 0 for any free one") from e
         sock.listen(16)
         sock.settimeout(_POLL_S)

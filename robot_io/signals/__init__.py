@@ -4,8 +4,8 @@
 (:mod:`~robot_io.signals.replay`) and a UDP sample stream (:mod:`~robot_io.signals.udp`)."""
 
 from robot_io.signals.base import (
-    Backlog,
     CHUNK_STATUSES,
+    Backlog,
     SignalChunk,
     SignalSource,
     SourceStats,

@@ -52,7 +52,7 @@ class SignalFileError(CctmillError):
 def _uniform(n: int, fs_hz: float | None, file: str) -> np.ndarray:
     if fs_hz is None:
         raise SignalFileError(file, 0, "one value per sample and no time column: give the sample "
-                              "rate (--fs-hz N)")
+                              "rate fs_hz")
     if not (np.isfinite(fs_hz) and fs_hz > 0):
         raise SignalFileError(file, 0, f"sample rate must be positive, got {fs_hz}")
     return np.arange(n) / float(fs_hz)
@@ -130,7 +130,8 @@ def _read_npy(p: Path, fs_hz: float | None) -> tuple[np.ndarray, np.ndarray]:
         if not (np.all(np.isfinite(t)) and np.all(np.diff(t) > 0)):
             raise SignalFileError(file, 0, "column 0 (time [s]) must be finite and increase strictly")
         return t, a[:, 1]
-    raise SignalFileError(file, 0, f"shape {a.shape}: need (n,) with --fs-hz, or (n, 2) = [t_s, value]")
+    raise SignalFileError(file, 0, f"shape {a.shape}: need (n,) with a sample rate (fs_hz), or "
+                          "(n, 2) = [t_s, value]")
 
 
 def load_signal(path: str | os.PathLike, fs_hz: float | None = None,

@@ -32,7 +32,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from robot_io.signals.base import SignalChunk, SourceStats, Backlog, empty_chunk
+from robot_io.signals.base import Backlog, SignalChunk, SourceStats, empty_chunk
 
 __all__ = [
     "HEADER",

@@ -1,0 +1,110 @@
+"""Drilling cycles of the APT/CL interpreter (private): ``CYCLE`` definitions and the moves of
+each hole a ``GOTO`` makes while one is on; conventions in :mod:`robot_io.apt.reader`."""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+from robot_io.apt import _records as rc
+from robot_io.toolpath import MoveKind
+
+if TYPE_CHECKING:
+    from robot_io.apt._interp import Run
+
+__all__ = ["cycle_", "hole"]
+
+
+def cycle_(run: Run, rec: rc.Record) -> None:
+    toks = run.tokens(rec)
+    if not toks or not isinstance(toks[0][0], str):
+        run.bad(run.field_offset(rec, 0), f"CYCLE needs a type (DRILL, DEEP2, …, OFF); "
+                f"{rc.FIX}")
+    kind = toks[0][0]
+    if kind == "OFF":
+        run.cycle = None
+        return
+    if kind == "INIT":
+        return
+    if kind == "ON":
+        if run.last_cycle is None:
+            run.bad(run.field_offset(rec, 0), f"CYCLE/ON without an earlier cycle "
+                    f"definition; {rc.FIX}")
+        run.cycle = run.last_cycle
+        return
+    params: dict[str, float | str] = {}
+    feed: tuple[float, bool] | None = None
+    i = 1
+    while i < len(toks):
+        key, idx = toks[i]
+        if not isinstance(key, str) or i + 1 >= len(toks):
+            run.bad(run.field_offset(rec, idx), f"CYCLE/{kind}: expected keyword,value "
+                    f"pairs (FEDTO,depth,MMPM,feed,RAPTO,clearance,RTRCTO,retract); {rc.FIX}")
+        val = toks[i + 1][0]
+        if key in rc.FEED_WORDS:
+            if not isinstance(val, float) or not val > 0:
+                run.bad(run.field_offset(rec, toks[i + 1][1]), f"CYCLE/{kind}: {key} "
+                        f"needs a positive feed; {rc.FIX}")
+            unit, per_rev = rc.FEED_WORDS[key]
+            feed = (val * unit / (1.0 if per_rev else 60.0), per_rev)  # type: ignore[operator]
+        else:
+            params[key] = val
+        i += 2
+    s = run.length_scale()
+
+    def dist(key: str, default: float | None) -> float | None:
+        v = params.get(key, default)
+        if isinstance(v, str):
+            run.bad(run.field_offset(rec, next(j for t, j in toks if t == key) + 1),
+                    f"CYCLE/{kind}: {key} needs a number, got {v!r}; {rc.FIX}")
+        return None if v is None else float(v) * s
+
+    depth = dist("FEDTO", None)
+    if depth is None or not depth > 0:
+        run.bad(run.field_offset(rec, 0), f"CYCLE/{kind} needs FEDTO,depth (> 0, measured "
+                f"from the hole point against the tool axis); {rc.FIX}")
+    if feed is None:
+        run.bad(run.field_offset(rec, 0), f"CYCLE/{kind} needs its feed (MMPM,f / IPM,f / "
+                f"MMPR,f / IPR,f); {rc.FIX}")
+    clear = dist("RAPTO", 0.0)
+    retract = dist("RTRCTO", None)
+    info = {"line": rec.line, "type": kind, "depth_m": depth, "rapto_m": clear,
+            "rtrcto_m": retract, "feed": feed[0], "feed_per_rev": feed[1],  # type: ignore[index]
+            "pecks_ignored": any(w in params for w in rc.PECK_WORDS),
+            "dwell_ignored": bool(params.get("DWELL")), "holes": 0}
+    run.meta["cycles"].append(info)
+    run.cycle = {"type": kind, "depth": depth, "clear": clear,
+                 "retract": clear if retract is None else retract, "feed": feed,
+                 "line": rec.line, "info": info}
+    run.last_cycle = run.cycle
+
+
+def hole(run: Run, rec: rc.Record, p: rc.Vec) -> None:
+    """The moves of one hole of the cycle in force at the hole point ``p`` [m]."""
+    cyc = run.cycle
+    assert cyc is not None
+    a = run.axis if run.axis is not None else (0.0, 0.0, 1.0)
+    value, per_rev = cyc["feed"]
+    if per_rev:
+        if run.rpm is None or not run.spindle_on or run.rpm <= 0:
+            run.bad(None, f"CYCLE/{cyc['type']} (line {cyc['line']}) feed per revolution "
+                    "but no spindle speed in force: add SPINDL/rpm,RPM,CLW before it",
+                    "feed_per_rev_without_spindle")
+        feed = value * run.rpm / 60.0   # type: ignore[operator]
+    else:
+        feed = value
+    extra = {"cycle": cyc["type"]}
+
+    def at(d: float) -> rc.Vec:
+        return (p[0] + d * a[0], p[1] + d * a[1], p[2] + d * a[2])
+
+    top, clear, bottom = at(cyc["retract"]), at(cyc["clear"]), at(-cyc["depth"])
+    for kind, target, f in ((MoveKind.RAPID, top, None), (MoveKind.RAPID, clear, None),
+                            (MoveKind.LINEAR, bottom, feed)):
+        if run.pos is not None and math.dist(run.pos, target) < rc.CYCLE_POSITION_TOL:
+            continue
+        run.emit(rec, kind, target, f, axis=a, extra=extra)
+    back = cyc["type"] in rc.FEED_RETRACT_CYCLES
+    run.emit(rec, MoveKind.LINEAR if back else MoveKind.RAPID, top, feed if back else None,
+             axis=a, extra=extra)
+    cyc["info"]["holes"] += 1

@@ -1,0 +1,141 @@
+"""Motion records of the APT/CL interpreter (private): ``GOTO``, ``FROM``, ``RAPID``,
+``TLAXIS``, ``MULTAX`` and ``CIRCLE`` with the arc its end point ``GOTO`` closes; conventions in
+:mod:`robot_io.apt.reader`."""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+from robot_io.apt import _records as rc
+from robot_io.apt._cycles import hole
+from robot_io.apt._frames import direction, point
+from robot_io.toolpath import MoveKind
+
+if TYPE_CHECKING:
+    from robot_io.apt._interp import Run
+
+__all__ = ["circle_", "from_", "goto", "multax", "orphan_circle", "rapid_", "tlaxis"]
+
+
+def goto(run: Run, rec: rc.Record) -> None:
+    circle, run.circle = run.circle, None   # a malformed end GOTO takes its CIRCLE along
+    vals = run.numbers(rec, (3, 6), "3 numbers (x,y,z) or 6 (x,y,z,i,j,k)")
+    p = point(run, vals)
+    if len(vals) == 6:
+        run.axis = direction(run, vals, 3, "tool axis i,j,k")
+    if circle is not None:
+        _arc(run, rec, p, circle)
+    elif run.cycle is not None:
+        run.rapid = False
+        hole(run, rec, p)
+    else:
+        kind = MoveKind.RAPID if run.rapid else MoveKind.LINEAR
+        run.rapid = False
+        run.emit(rec, kind, p, None if kind == MoveKind.RAPID else run.move_feed(rec))
+
+
+def from_(run: Run, rec: rc.Record) -> None:
+    vals = run.numbers(rec, (3, 6), "3 numbers (x,y,z) or 6 (x,y,z,i,j,k)")
+    run.pos = point(run, vals)
+    if len(vals) == 6:
+        run.axis = direction(run, vals, 3, "tool axis i,j,k")
+
+
+def rapid_(run: Run, rec: rc.Record) -> None:
+    if run.fields(rec):
+        run.bad(rec.args_at, f"RAPID takes no arguments; {rc.FIX}")
+    run.rapid = True
+
+
+def tlaxis(run: Run, rec: rc.Record) -> None:
+    vals = run.numbers(rec, (3,), "3 numbers (i,j,k)")
+    run.axis = direction(run, vals, 0, "tool axis i,j,k")
+
+
+def multax(run: Run, rec: rc.Record) -> None:
+    toks = run.tokens(rec)
+    if toks and toks[0][0] not in ("ON", "OFF"):
+        run.bad(run.field_offset(rec, 0), f"MULTAX takes ON or OFF; {rc.FIX}")
+    run.meta["multax"] = not toks or toks[0][0] == "ON"
+
+
+def circle_(run: Run, rec: rc.Record) -> None:
+    fields = run.fields(rec)
+    turns = 0
+    if len(fields) >= 2 and fields[-2].upper() == "TIMES":
+        n = run.number(rec, fields[-1], len(fields) - 1)
+        if n != int(n) or not 1 <= n <= rc.MAX_ARC_TURNS:
+            run.bad(run.field_offset(rec, len(fields) - 1), f"CIRCLE TIMES must be an "
+                    f"integer 1…{rc.MAX_ARC_TURNS}, got {n:g}; {rc.FIX}")
+        turns = int(n) - 1
+        run.warn(rec.col, "helix_turns", f"CIRCLE …,TIMES,{int(n)} read as {turns} extra "
+                 "full turn(s) beyond the sweep from start to end; check the helix")
+        fields = fields[:-2]
+    if len(fields) not in (6, 11):
+        at = (run.field_offset(rec, 11) if len(fields) > 11
+              else len(rec.text.rstrip(" \t")))
+        for i, f in enumerate(fields):
+            run.number(rec, f, i)
+        run.bad(at, f"CIRCLE takes 6 numbers (xc,yc,zc,i,j,k) or 11 (…,r,tol,ratio,"
+                f"diameter,corner) plus an optional TIMES,n; got {len(fields)}; {rc.FIX}")
+    vals = [run.number(rec, f, i) for i, f in enumerate(fields)]
+    centre = point(run, vals)
+    axis = direction(run, vals, 3, "circle axis i,j,k")
+    radius = None
+    if len(vals) == 11:
+        radius = vals[6] * run.scale
+        if not radius > 0:
+            run.bad(run.field_offset(rec, 6), f"CIRCLE radius must be positive; {rc.FIX}")
+    run.circle = (rec, centre, axis, radius, turns)
+
+
+def _arc(run: Run, rec: rc.Record, end: rc.Vec, circle: tuple) -> None:
+    crec, c, n, radius, turns = circle
+    run.rapid = False
+    start = run.pos
+    if start is None:
+        run.pos = end
+        run.bad(None, "CIRCLE from an unknown position: the arc needs its start point; "
+                "add a GOTO or FROM before it, or read with strict=False", "bad_arc", crec)
+    s = start
+    h = (s[0] - c[0]) * n[0] + (s[1] - c[1]) * n[1] + (s[2] - c[2]) * n[2]
+    c = (c[0] + h * n[0], c[1] + h * n[1], c[2] + h * n[2])   # centre in the start plane
+    rs = _radius(s, c, n)
+    re_ = _radius(end, c, n)
+    tol = max(run.opts.arc_radius_tol, run.opts.arc_radius_rtol * rs)
+    s_mm = 1.0 / run.scale
+    unit = "mm" if run.scale == rc.MM else "in"
+    if rs < rc.ARC_MIN_RADIUS:
+        run.pos = end
+        run.bad(None, "CIRCLE centre coincides with the arc's start point (zero radius); "
+                f"fix the centre, or {rc.FIX}", "bad_arc", crec)
+    for what, r in ((f"end point (GOTO at line {rec.line})", re_),
+                    ("given radius", radius)):
+        if r is not None and abs(r - rs) > tol:
+            run.pos = end
+            run.bad(None, f"CIRCLE {what} is off the circle: radius {r * s_mm:.6g} {unit} "
+                    f"against {rs * s_mm:.6g} {unit} at the start (tolerance "
+                    f"{tol * s_mm:.3g} {unit}); fix the centre or the end point, or widen "
+                    "arc_radius_tol", "arc_off_circle", crec)
+    ref = run.axis if run.axis is not None else (0.0, 0.0, 1.0)
+    if n[0] * ref[0] + n[1] * ref[1] + n[2] * ref[2] < 0:
+        kind, normal = MoveKind.ARC_CW, (-n[0], -n[1], -n[2])
+    else:
+        kind, normal = MoveKind.ARC_CCW, n
+    run.emit(crec, kind, end, run.move_feed(crec), arc=(c, normal, turns))
+
+
+def orphan_circle(run: Run, found: str) -> None:
+    """The pending ``CIRCLE`` was not followed by its ``GOTO`` (``found`` says what came)."""
+    crec = run.circle[0]   # type: ignore[index]
+    run.circle = None
+    run.bad(None, f"CIRCLE is not followed by its end point GOTO (found {found}); the arc "
+            f"ends at the GOTO right after the CIRCLE — add it, or {rc.FIX}",
+            category="circle_without_goto", rec=crec)
+
+
+def _radius(p: rc.Vec, c: rc.Vec, n: rc.Vec) -> float:
+    d = (p[0] - c[0], p[1] - c[1], p[2] - c[2])
+    a = d[0] * n[0] + d[1] * n[1] + d[2] * n[2]
+    return math.sqrt(max(d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - a * a, 0.0))
