@@ -26,6 +26,7 @@ import numpy as np
 from models.errors import DataFileError
 from planner._atomic import atomic_path, write_text_atomic
 from planner.limits import Limits
+from planner.plan_samples import SAMPLE_ARRAYS, SAMPLE_EXTRA, PlanSamples, from_file_unit, to_file_unit
 
 __all__ = [
     "BINDINGS",
@@ -55,32 +56,6 @@ KINDS = ("cut", "air", "rapid")
 #: and degrees; 1e-9 mm / 1e-9° keeps what the user wrote and drops the float noise of mm → m → mm.
 FRAME_DECIMALS = 9
 
-#: Arrays every ``samples.npz`` holds: file name → trailing shape.
-SAMPLE_ARRAYS: dict[str, tuple[int, ...]] = {
-    "s_m": (), "q_rad": (6,), "position_wp_m": (3,), "abc_wp_deg": (3,), "tool_axis_wp": (3,),
-    "section": (), "kind": (), "arc": (), "move": (), "line": (), "source_file": (), "feed_mm_s": (),
-    "speed_mm_s": (), "time_s": (), "force_N": (), "deflection_mm": (), "deflection_wp_m": (3,),
-    "deflection_normal_mm": (), "gamma_deg": (), "margin_N_per_m": (), "power_kW": (),
-    "a_e_m": (), "a_p_m": (), "mode": (),
-}
-#: Arrays a plan made by ``cctmill plan`` also holds (synthetic plans may not).
-SAMPLE_EXTRA: dict[str, tuple[int, ...]] = {
-    "ceiling_mm_s": (), "robot_limited": (), "bound_mm_s": (), "joint_speed_rad_s": (6,),
-}
-#: file name → (attribute, SI → file conversion); ``None`` copies, ``"deg"`` is rad → deg.
-_SAMPLE_UNITS: dict[str, tuple[str, float | str | None]] = {
-    "s_m": ("s", None), "q_rad": ("q", None), "position_wp_m": ("position_wp", None),
-    "abc_wp_deg": ("abc_wp", "deg"), "tool_axis_wp": ("tool_axis_wp", None),
-    "section": ("section", None), "kind": ("kind", None), "arc": ("arc", None),
-    "move": ("move", None), "line": ("line", None), "source_file": ("source_file", None),
-    "feed_mm_s": ("feed", 1e3), "speed_mm_s": ("speed", 1e3), "time_s": ("time", None),
-    "force_N": ("force", None), "deflection_mm": ("deflection", 1e3),
-    "deflection_wp_m": ("deflection_wp", None), "deflection_normal_mm": ("deflection_normal", 1e3),
-    "gamma_deg": ("gamma", "deg"), "margin_N_per_m": ("margin", None), "power_kW": ("power", 1e-3),
-    "a_e_m": ("a_e", None), "a_p_m": ("a_p", None), "mode": ("mode", None),
-    "ceiling_mm_s": ("ceiling", 1e3), "robot_limited": ("robot_limited", None),
-    "bound_mm_s": ("bound", 1e3), "joint_speed_rad_s": ("joint_speed", None),
-}
 _REQUIRED = ("format", "version", "method", "sections", "cycle_time_s", "constraints", "solver",
              "samples_file", "base_frame", "tool_frame")
 _SECTION_REQUIRED = ("index", "kind", "sample_start", "sample_stop", "s_start_m", "s_end_m",
@@ -89,22 +64,6 @@ _SECTION_REQUIRED = ("index", "kind", "sample_start", "sample_stop", "s_start_m"
 
 class PlanFileError(DataFileError):
     """A plan file is missing, malformed, or not a cctmill plan (``path``: the file)."""
-
-
-def _to_file(v: Any, unit: float | str | None) -> Any:
-    if v is None or unit is None:
-        return v
-    if unit == "deg":
-        return np.degrees(v)
-    return v * unit
-
-
-def _from_file(v: Any, unit: float | str | None) -> Any:
-    if v is None or unit is None:
-        return v
-    if unit == "deg":
-        return np.radians(v)
-    return v / unit
 
 
 def _opt(v: Any) -> float | None:
@@ -138,7 +97,7 @@ class SectionCharacteristic:
     def as_json(self) -> dict[str, Any]:
         out = {"sample": self.sample, "feeds_mm_s": (self.feeds * 1e3).tolist(),
                "margin_N_per_m": self.margin.tolist(), "gamma_deg": np.degrees(self.gamma).tolist(),
-               "force_N": self.force.tolist(), "deflection_mm": _to_file(self.deflection, 1e3),
+               "force_N": self.force.tolist(), "deflection_mm": to_file_unit(self.deflection, 1e3),
                "stable": self.stable.tolist(), "ok": self.ok}
         return {k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in out.items()
                 if v is not None}
@@ -229,9 +188,9 @@ class PlanSection:
             "time_s": self.time, "process_time_s": self.process_time,
             "robot_limited": self.robot_limited, "tooth_frequency_hz": self.tooth_frequency,
             "margin_N_per_m": self.margin, "force_max_N": self.force_max,
-            "deflection_max_mm": _to_file(self.deflection_max, 1e3),
-            "deflection_normal_max_mm": _to_file(self.deflection_normal_max, 1e3),
-            "power_max_kW": _to_file(self.power_max, 1e-3),
+            "deflection_max_mm": to_file_unit(self.deflection_max, 1e3),
+            "deflection_normal_max_mm": to_file_unit(self.deflection_normal_max, 1e3),
+            "power_max_kW": to_file_unit(self.power_max, 1e-3),
             "gamma_deg": None if self.gamma is None else float(np.degrees(self.gamma)),
             "gamma_range_deg": (None if self.gamma_range is None
                                 else [float(np.degrees(g)) for g in self.gamma_range]),
@@ -264,79 +223,14 @@ class PlanSection:
             time=_opt(d.get("time_s")), process_time=_opt(d.get("process_time_s")),
             robot_limited=d.get("robot_limited"), tooth_frequency=_opt(d.get("tooth_frequency_hz")),
             margin=_opt(d.get("margin_N_per_m")), force_max=_opt(d.get("force_max_N")),
-            deflection_max=_from_file(_opt(d.get("deflection_max_mm")), 1e3),
-            deflection_normal_max=_from_file(_opt(d.get("deflection_normal_max_mm")), 1e3),
-            power_max=_from_file(_opt(d.get("power_max_kW")), 1e-3),
+            deflection_max=from_file_unit(_opt(d.get("deflection_max_mm")), 1e3),
+            deflection_normal_max=from_file_unit(_opt(d.get("deflection_normal_max_mm")), 1e3),
+            power_max=from_file_unit(_opt(d.get("power_max_kW")), 1e-3),
             gamma=None if d.get("gamma_deg") is None else math.radians(float(d["gamma_deg"])),
             gamma_range=None if gr is None else (math.radians(gr[0]), math.radians(gr[1])),
             natural_frequencies=None if nf is None else (float(nf[0]), float(nf[1])),
-            ceiling_min=_from_file(_opt(d.get("ceiling_min_mm_s")), 1e3),
+            ceiling_min=from_file_unit(_opt(d.get("ceiling_min_mm_s")), 1e3),
             tightest_sample=d.get("tightest_sample"), characteristic=char)
-
-
-@dataclass(frozen=True)
-class PlanSamples:
-    """Every path sample of the plan, SI; arrays of shape (n,) unless noted.
-
-    Attributes:
-        s: arc length [m]; q: joint angles [rad], (n, 6); position_wp: TCP in ``$BASE`` [m],
-            (n, 3); abc_wp: TCP orientation in ``$BASE`` as KUKA A, B, C [rad], (n, 3);
-            tool_axis_wp: unit tool axis in ``$BASE``, (n, 3).
-        section, kind (0 cut, 1 air, 2 rapid), arc (bool), move, line, source_file (index into
-            :attr:`Plan.files`): where each sample comes from.
-        feed: planned feed [m/s]; speed: timed path speed [m/s]; time: timed clock [s].
-        force [N]; deflection: ‖δ‖ [m]; deflection_wp: δ in ``$BASE`` axes [m], (n, 3);
-        deflection_normal [m]; gamma [rad]; margin [N/m]; power [W] (NaN where not cutting).
-        a_e, a_p: engagement [m]; mode: milling mode code.
-        ceiling [m/s], robot_limited (bool), bound [m/s], joint_speed [rad/s] (n, 6): optional.
-    """
-
-    s: np.ndarray
-    q: np.ndarray
-    position_wp: np.ndarray
-    abc_wp: np.ndarray
-    tool_axis_wp: np.ndarray
-    section: np.ndarray
-    kind: np.ndarray
-    arc: np.ndarray
-    move: np.ndarray
-    line: np.ndarray
-    source_file: np.ndarray
-    feed: np.ndarray
-    speed: np.ndarray
-    time: np.ndarray
-    force: np.ndarray
-    deflection: np.ndarray
-    deflection_wp: np.ndarray
-    deflection_normal: np.ndarray
-    gamma: np.ndarray
-    margin: np.ndarray
-    power: np.ndarray
-    a_e: np.ndarray
-    a_p: np.ndarray
-    mode: np.ndarray
-    ceiling: np.ndarray | None = None
-    robot_limited: np.ndarray | None = None
-    bound: np.ndarray | None = None
-    joint_speed: np.ndarray | None = None
-
-    def __len__(self) -> int:
-        return int(self.s.shape[0])
-
-    def as_arrays(self) -> dict[str, np.ndarray]:
-        """The ``samples.npz`` arrays (units in the names)."""
-        out = {}
-        for name, (attr, unit) in _SAMPLE_UNITS.items():
-            v = getattr(self, attr)
-            if v is not None:
-                out[name] = _to_file(v, unit)
-        return out
-
-    @classmethod
-    def from_arrays(cls, arrays: dict[str, np.ndarray]) -> PlanSamples:
-        kw = {attr: _from_file(arrays[name], unit) for name, (attr, unit) in _SAMPLE_UNITS.items()
-              if name in arrays}
-        return cls(**kw)
 
 
 @dataclass(frozen=True)
@@ -464,7 +358,7 @@ class Plan:
             "base_frame": _frame_json(self.base_xyz, self.base_abc),
             "tool_frame": _frame_json(self.tool_xyz, self.tool_abc),
             "spindle_rpm": self.spindle_rpm, "flutes": self.flutes,
-            "tool_diameter_mm": _to_file(self.tool_diameter, 1e3), "material": self.material,
+            "tool_diameter_mm": to_file_unit(self.tool_diameter, 1e3), "material": self.material,
             "model": dict(self.model),
             "constraints": self.limits.as_json(self.safety_factor),
             "sections": [s.as_json() for s in self.sections],
@@ -507,7 +401,7 @@ class Plan:
                    job_folder=doc.get("job_folder", doc.get("job_file")),
                    files=tuple(doc.get("files") or ()), spindle_rpm=doc.get("spindle_rpm"),
                    flutes=doc.get("flutes"), material=doc.get("material"),
-                   tool_diameter=_from_file(_opt(doc.get("tool_diameter_mm")), 1e3),
+                   tool_diameter=from_file_unit(_opt(doc.get("tool_diameter_mm")), 1e3),
                    model=dict(doc.get("model") or {}), process_time=_opt(doc.get("process_time_s")),
                    wall_times=dict(doc.get("wall_times_s") or {}),
                    summary=dict(doc.get("summary") or {}))
