@@ -1,11 +1,15 @@
 # Two commands on a fresh machine with Python 3.11 and make:  make demo  /  make test
+# More: make bench (benchmarks → docs/performance.md), make docs (the manual, --strict, into out/site),
+#       make picture (the README's image, docs/img/plan_along_path.png), make clean.
 PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 TSTAMP := $(VENV)/.installed-test
+DSTAMP := $(VENV)/.installed-docs
+SITE   := out/site
 
-.PHONY: demo test bench clean
+.PHONY: demo test bench docs picture clean
 
 $(PY):
 	@test -n "$(PYTHON)" || { echo "need python3.11 (or python3 >= 3.11) on PATH"; exit 1; }
@@ -20,15 +24,33 @@ $(TSTAMP): pyproject.toml | $(PY)
 	$(PY) -m pip install --quiet -e '.[test]'
 	@touch $(STAMP) $@
 
+$(DSTAMP): pyproject.toml | $(PY)
+	$(PY) -m pip install --quiet -e '.[docs]'
+	@touch $(STAMP) $@
+
 demo: $(STAMP)
 	$(VENV)/bin/cctmill demo -o out
 
 test: $(TSTAMP)
 	$(PY) -m pytest
 
+# Every benchmark; writes out/benchmarks.md, docs/performance.md and the table of docs/validation.md.
 bench: $(STAMP)
 	$(PY) -m pip install --quiet -e '.[bench]'
 	$(PY) benchmarks/run_all.py
+
+# The job file reference in docs/job.md is generated from the schema (committed), then the manual is
+# built with every warning an error.
+docs: $(DSTAMP)
+	$(PY) docs/gen_job_reference.py
+	$(PY) docs/check_readme_links.py
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --clean --site-dir $(SITE)
+	@echo "manual: $(SITE)/index.html"
+
+# The image of the README and the manual's front page: the demo plan along its path, downsized.
+picture: $(STAMP)
+	$(VENV)/bin/cctmill plan --demo -o out
+	$(PY) docs/make_picture.py out/plan_along_path.png docs/img/plan_along_path.png
 
 clean:
 	rm -rf $(VENV) out

@@ -1,5 +1,6 @@
-"""Figures of the dynamic model for the README (SPEC §6, §7): iteration, engagement estimate,
-how regeneration moves the stability boundary, and the workspace map of the dynamic effect.
+"""Figures of the dynamic model for the manual's docs/dynamics.md (docs/model.md §6, §7): iteration,
+engagement estimate, how regeneration moves the stability boundary, and the workspace map of the
+dynamic effect.
 
 1. Case 1 (pose and cut of the thesis, 1000 rpm, 1 mm/s, regeneration on): F_peak and F_PV of
    the equilibrium chip against the thesis's first iteration (the structure answers the

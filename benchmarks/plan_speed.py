@@ -8,7 +8,7 @@ Two jobs, every method under identical limits, all measured in this run:
 For each: cycle time (toppra-timed, rapids included), process time Σ L/f, planning wall time
 (prepare = read + sample + IK + engagement; plan = ceilings + sections + timing), IPOPT status and
 iterations, and the independent checker's verdict on every sample (:mod:`planner.check`). The
-baseline is the thesis section algorithm (SPEC §8, every sample held); the thesis exactly as
+baseline is the thesis section algorithm (docs/model.md §8, every sample held); the thesis exactly as
 published (midpoints only) is run too, with the limits it breaks counted. Peak memory of the long
 job is measured in a child process (``ru_maxrss``), so the demo run does not count against it.
 

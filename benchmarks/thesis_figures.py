@@ -1,7 +1,7 @@
 """What this model gives for each published figure the physics core can recompute, and whether it agrees.
 
 Only figures stated in SPEC (its check values, the thesis figures it quotes, and its honest-model
-claims) are listed; none is invented and no parameter is tuned to make one come out (SPEC §5).
+claims) are listed; none is invented and no parameter is tuned to make one come out (docs/model.md §5).
 The model is used exactly as shipped: KR 210 URDF + joint stiffness of the thesis, Al 6061
 coefficients, the thesis's Case 1 cut (up milling, a_e 15.24 mm, a_p 5.08 mm, two flutes,
 R 12.7 mm, 1000 rpm, 1 mm/s) at the Case 1 joint angles with feed (0, 1, 0), radial (1, 0, 0).
@@ -54,17 +54,17 @@ from models import (  # noqa: E402
 CASE1_JOINTS_DEG = (-96.42, -29.26, 99.08, -9.95, 83.23, -160.5)
 CASE1_FEED_DIR = (0.0, 1.0, 0.0)
 CASE1_RADIAL_DIR = (1.0, 0.0, 0.0)
-#: SPEC §2 flange check pose [deg] and position [m].
+#: docs/model.md §2 flange check pose [deg] and position [m].
 FLANGE_CHECK_DEG = (0.0, -90.0, 90.0, 0.0, 0.0, 0.0)
 FLANGE_CHECK_M = (1.765, 0.0, 1.784)
 
 POPULATION = 2_000
 SEED = 7_302
-#: Force limit of the thesis for the KR210 with spindle [N] (SPEC §5 step 7).
+#: Force limit of the thesis for the KR210 with spindle [N] (docs/model.md §5 step 7).
 FORCE_LIMIT = 300.0
 
 #: "≈ 11 Hz" is measured on a real KR210; our inertias are uniform solids with sibling masses
-#: (SPEC §2). Agreement: the nearer natural frequency within this relative tolerance [-].
+#: (docs/model.md §2). Agreement: the nearer natural frequency within this relative tolerance [-].
 FREQUENCY_REL_TOL = 0.20
 #: "K_p ≈ 1e4 vs ≈ 1e6": agreement = same order of magnitude, |log10(ours/published)| ≤ this.
 ORDER_OF_MAGNITUDE_TOL = 0.5
@@ -141,28 +141,28 @@ def figures() -> list[Figure]:
     a = case["thesis", "isotropic"]
     rows: list[Figure] = []
 
-    # 1. Case 1 average force (SPEC §4 check value).
+    # 1. Case 1 average force (docs/model.md §4 check value).
     pub = np.array([37.7, 19.4, -57.5])
     ok = all(_rounds_to(v, p, 0.05) for v, p in zip(a.force_o, pub, strict=True))
     ok_res = _rounds_to(a.force, 71.5, 0.05)
     rows.append(Figure(
-        "1. Case 1 average force F_o (X_o, Y_o, Z_o), |F|", "SPEC §4 (thesis Case 1)",
+        "1. Case 1 average force F_o (X_o, Y_o, Z_o), |F|", "docs/model.md §4 (thesis Case 1)",
         "(37.7, 19.4, −57.5) N, 71.5 N",
         "({}, {}, {}) N, {} N".format(*(_num(v, ".3f") for v in (*a.force_o, a.force))),
-        _verdict(ok and ok_res), "closed forms of SPEC §4; rounds to the printed digits"))
+        _verdict(ok and ok_res), "closed forms of docs/model.md §4; rounds to the printed digits"))
 
     # 2. K_py.
     rows.append(Figure(
-        "2. cutting stiffness K_py", "SPEC §4 (thesis App. A)", "−1.41e4 N/m",
+        "2. cutting stiffness K_py", "docs/model.md §4 (thesis App. A)", "−1.41e4 N/m",
         f"{_sci(a.k_py, 4)} N/m", _verdict(_rounds_to(a.k_py, -1.41e4, 50.0)),
         "K_pyo = −|∂F̄/∂a_p| by CasADi AD"))
 
     # 3. K_px: the known factor of two.
     ratio = a.k_px / 1.32e3
     rows.append(Figure(
-        "3. cutting stiffness K_px", "thesis (printed); SPEC §4", "1.32e3 N/m",
+        "3. cutting stiffness K_px", "thesis (printed); docs/model.md §4", "1.32e3 N/m",
         f"{_sci(a.k_px, 4)} N/m", f"disagrees: factor {ratio:.1f}",
-        "SPEC §4: the thesis's printed equations give ≈ 2.65e3, exactly twice its printed value; "
+        "docs/model.md §4: the thesis's printed equations give ≈ 2.65e3, exactly twice its printed value; "
         "implemented as printed, not tuned"))
 
     # 4. Flange check pose.
@@ -170,7 +170,7 @@ def figures() -> list[Figure]:
     p_flange = np.asarray(p_flange, float).reshape(3)
     ok = all(_rounds_to(v, p, 5e-4) for v, p in zip(p_flange, FLANGE_CHECK_M, strict=True))
     rows.append(Figure(
-        "4. flange position at axes (0, −90, 90, 0, 0, 0) deg", "SPEC §2", "(1.765, 0, 1.784) m",
+        "4. flange position at axes (0, −90, 90, 0, 0, 0) deg", "docs/model.md §2", "(1.765, 0, 1.784) m",
         "({}, {}, {}) m".format(*(_num(v + 0.0, ".4f") for v in p_flange)), _verdict(ok),
         "CasADi kinematics walked from the pinocchio model of the shipped URDF"))
 
@@ -181,7 +181,7 @@ def figures() -> list[Figure]:
         near = freqs[np.argmin(np.abs(freqs - 11.0))]
         ok = abs(near - 11.0) <= FREQUENCY_REL_TOL * 11.0
         rows.append(Figure(
-            f"5{label}. 2-DOF natural frequency at Case 1, {plane}", "thesis (measured); SPEC §5",
+            f"5{label}. 2-DOF natural frequency at Case 1, {plane}", "thesis (measured); docs/model.md §5",
             "≈ 11 Hz", f"{freqs[0]:.1f} Hz and {freqs[1]:.1f} Hz (nearer: {near:.1f} Hz)",
             _verdict(ok),
             f"judged on the nearer frequency, tolerance ±{FREQUENCY_REL_TOL:.0%}; `robot` mass "
@@ -191,20 +191,20 @@ def figures() -> list[Figure]:
     # 6. Tool-axis angle off Y_o.
     angle = math.degrees(a.tool_axis_angle)
     rows.append(Figure(
-        "6a. Case 1: tool axis angle off Y_o at its published joint angles", "SPEC §4", "63°",
+        "6a. Case 1: tool axis angle off Y_o at its published joint angles", "docs/model.md §4", "63°",
         f"{angle:.2f}°", _verdict(_rounds_to(angle, 63.0, 0.5)),
         "feed (0,1,0), radial (1,0,0); the frame cannot be the tool's own at face value"))
     rows.append(Figure(
-        "6b. Case 2: tool axis angle off Y_o", "SPEC §4", "42°", "—", "n.a.",
+        "6b. Case 2: tool axis angle off Y_o", "docs/model.md §4", "42°", "—", "n.a.",
         "not recomputable: Case 2's joint angles are not available here"))
 
-    # 7. Honest-model claims (SPEC §5).
+    # 7. Honest-model claims (docs/model.md §5).
     kp_t = float(np.linalg.norm(case["thesis", "isotropic"].k_p, 2))
     kp_o = float(np.linalg.norm(case["oriented", "isotropic"].k_p, 2))
     ok = (abs(math.log10(kp_t / 1e4)) <= ORDER_OF_MAGNITUDE_TOL
           and abs(math.log10(kp_o / 1e6)) <= ORDER_OF_MAGNITUDE_TOL)
     rows.append(Figure(
-        "7a. process stiffness ‖K_p‖ for Case 1, thesis vs oriented", "SPEC §5",
+        "7a. process stiffness ‖K_p‖ for Case 1, thesis vs oriented", "docs/model.md §5",
         "≈ 1e4 vs ≈ 1e6 N/m", f"{_sci(kp_t)} vs {_sci(kp_o)} N/m (ratio {kp_o / kp_t:.0f})",
         _verdict(ok), f"spectral norm of the 2×2 K_p; agreement = within "
         f"±{ORDER_OF_MAGNITUDE_TOL} decade"))
@@ -217,7 +217,7 @@ def figures() -> list[Figure]:
     inside = float(np.mean((aniso >= 1e5) & (aniso <= 1e6)))
     case_aniso = a.k_max - a.k_min
     rows.append(Figure(
-        "7b. stiffness anisotropy K_max − K_min (2×2 block, Δ plane)", "SPEC §5",
+        "7b. stiffness anisotropy K_max − K_min (2×2 block, Δ plane)", "docs/model.md §5",
         "≈ 1e5–1e6 N/m",
         f"median {_sci(med)} N/m (10–90 %: {_sci(lo)}–{_sci(hi)}); Case 1: {_sci(case_aniso)} N/m",
         _verdict(1e5 <= med <= 1e6),
@@ -238,7 +238,7 @@ def figures() -> list[Figure]:
     text = "; ".join(f"at {k}: median {m:.2g}°, p99 {p:.2g}°, max {x:.2g}°"
                      for k, (m, p, x) in shifts.items())
     rows.append(Figure(
-        "7c. γ shift by the CCT term (CCT on − off)", "SPEC §5", "far less than 1°", text,
+        "7c. γ shift by the CCT term (CCT on − off)", "docs/model.md §5", "far less than 1°", text,
         _verdict(ok), f"thesis model, {POPULATION} random reachable poses; agreement = p99 < "
         f"{GAMMA_SHIFT_TOL_DEG}° at both force levels"))
 
@@ -246,7 +246,7 @@ def figures() -> list[Figure]:
     frac_o = float(np.mean(oriented["stable"] > 0.5))
     med_t = float(np.median(thesis["margin"] / thesis["k_min"]))
     rows.append(Figure(
-        "7d. fraction of poses stable (eigen criterion), Case 1 cut at 1 mm/s", "SPEC §5",
+        "7d. fraction of poses stable (eigen criterion), Case 1 cut at 1 mm/s", "docs/model.md §5",
         "thesis model: strongly stable for most poses",
         f"thesis {frac_t:.1%} (median margin / K_min {med_t:.3f}); oriented {frac_o:.1%}",
         _verdict(frac_t > MOST),

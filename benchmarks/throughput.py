@@ -4,7 +4,7 @@ What is measured
     The kernel is ``point_function(robot, "thesis", "isotropic", outputs=("stiffness", "gamma",
     "margin"))``: for one pose and one cut it computes the average cutting force, the CCT
     translational stiffness K_t under that force, the 2-DOF frame, γ and the stability margin
-    (SPEC §3–§5). It is evaluated on ``--n`` (default 100,000) random reachable poses of the
+    (docs/model.md §3–§5). It is evaluated on ``--n`` (default 100,000) random reachable poses of the
     KR 210, each with the thesis's Case 1 cut (up milling, a_e 15.24 mm, a_p 5.08 mm, two flutes,
     R 12.7 mm, 1000 rpm, 1 mm/s).
 
@@ -15,7 +15,7 @@ Poses
     vectorised. "Reachable" = inside the limits and not singular.
 
 Cut frame
-    Derived per pose from its tool axis, so that the cut is physically consistent (SPEC §4: Y_o
+    Derived per pose from its tool axis, so that the cut is physically consistent (docs/model.md §4: Y_o
     should be the tool axis): Y_o = tool axis (TCP +x), Z_o (feed) = base +Y projected onto the
     plane normal to the tool axis (base +X when the tool axis is within 26° of base Y),
     X_o = Y_o × Z_o. So the ``cut`` input is mapped (12 × n), as along a real path.
@@ -90,7 +90,7 @@ GAMMA_ABS_TOL = 1e-9
 MARGIN_REL_TOL = 1e-8
 MARGIN_SCALE_REL = 1e-6
 
-#: Case 1 of the thesis (SPEC §4), in SI.
+#: Case 1 of the thesis (docs/model.md §4), in SI.
 CASE1 = {"a_e": 15.24e-3, "a_p": 5.08e-3, "mode": "up", "spindle_speed": 1000 * 2 * np.pi / 60,
          "flutes": 2, "radius": 12.7e-3}
 CASE1_FEED = 1e-3  # [m/s]
@@ -198,8 +198,8 @@ class Baseline:
     """Straightforward per-pose numpy/pinocchio implementation of the same three outputs.
 
     No vectorisation and no CasADi: what a competent engineer writes first. Closed forms of
-    SPEC §4 for the average force and the cutting stiffness (derivatives by hand), pinocchio for
-    the Jacobian and its derivative, numpy for the rest (SPEC §3, §5).
+    docs/model.md §4 for the average force and the cutting stiffness (derivatives by hand), pinocchio for
+    the Jacobian and its derivative, numpy for the rest (docs/model.md §3, §5).
     """
 
     def __init__(self, robot: Robot, tcp: np.ndarray) -> None:
@@ -232,7 +232,7 @@ class Baseline:
         ])
 
     def cutting(self, cut: np.ndarray, feed: float, coeffs: np.ndarray):
-        """(F_o (3,) [N], K_px, K_py [N/m]) of the cut vector, closed forms (SPEC §4)."""
+        """(F_o (3,) [N], K_px, K_py [N/m]) of the cut vector, closed forms (docs/model.md §4)."""
         a_e, a_p, omega, flutes, radius = (
             _part(cut, CUT_LAYOUT, k)[0] for k in ("a_e", "a_p", "spindle_speed", "flutes", "radius"))
         mode = int(round(_part(cut, CUT_LAYOUT, "mode")[0]))
@@ -269,12 +269,12 @@ class Baseline:
         f_o, k_px, k_py = self.cutting(cut, feed, coeffs)
         f_base = f_o[0] * x_o + f_o[1] * y_o + f_o[2] * z_o
 
-        # Jacobian at the TCP and its derivative (SPEC §3).
+        # Jacobian at the TCP and its derivative (docs/model.md §3).
         pin.computeJointJacobians(model, data, q)
         pin.updateFramePlacements(model, data)
         jac = pin.getFrameJacobian(model, data, self.tcp_frame, pin.LOCAL_WORLD_ALIGNED)
         pin.computeJointKinematicHessians(model, data, q)
-        # pinocchio 4.1's Python binding returns the axes reversed (SPEC §3): transpose.
+        # pinocchio 4.1's Python binding returns the axes reversed (docs/model.md §3): transpose.
         hess = pin.getJointKinematicHessian(model, data, self.joint,
                                             pin.LOCAL_WORLD_ALIGNED).transpose(2, 1, 0)
         # hess[a, i, k] = ∂J_joint[a, i]/∂q_k at the joint origin; shift to the TCP:
@@ -292,7 +292,7 @@ class Baseline:
         k_t = np.linalg.inv(c_tt)
         k_t = 0.5 * (k_t + k_t.T)
 
-        # The 2-DOF problem in Δ (SPEC §5, thesis process model, isotropic mass).
+        # The 2-DOF problem in Δ (docs/model.md §5, thesis process model, isotropic mass).
         alpha = math.atan2(f_o[2], f_o[0])
         x_d = math.cos(alpha) * x_o + math.sin(alpha) * z_o
         plane = np.column_stack([x_d, y_o])

@@ -81,7 +81,7 @@ class Cut:
             must be orthogonal to ``feed_dir``. Y_o = Z_o × X_o runs along the axial depth.
         a_e: radial depth of cut [m].
         a_p: axial depth of cut [m].
-        mode: ``"up"``, ``"down"`` or ``"slot"`` (SPEC §4: which side of X_o the material is on).
+        mode: ``"up"``, ``"down"`` or ``"slot"`` (docs/model.md §4: which side of X_o the material is on).
         spindle_speed: [rad/s].
         flutes: number of flutes N.
         radius: tool radius R [m].
@@ -141,7 +141,7 @@ class Cut:
 
 @dataclass(frozen=True)
 class ModelParameters:
-    """Every tunable of the point model, explicit so a user can calibrate it (SPEC §5). SI.
+    """Every tunable of the point model, explicit so a user can calibrate it (docs/model.md §5). SI.
 
     Attributes:
         joint_stiffness: K_θ diagonal [N·m/rad], shape (6,).
@@ -297,8 +297,8 @@ def point_function(robot: Robot, process_model: str = "thesis", mass_model: str 
 
     Args:
         robot: the robot (its symbolic kinematics are reused).
-        process_model: ``"thesis"`` (default) or ``"oriented"`` (SPEC §5 step 5).
-        mass_model: ``"isotropic"`` (default) or ``"robot"`` (CRBA + spindle, SPEC §5).
+        process_model: ``"thesis"`` (default) or ``"oriented"`` (docs/model.md §5 step 5).
+        mass_model: ``"isotropic"`` (default) or ``"robot"`` (CRBA + spindle, docs/model.md §5).
         outputs: subset of :data:`OUTPUTS` (a smaller graph is faster); default all.
 
     The Function is built once per (robot, choices, outputs) and cached. Map it over many points with

@@ -1,6 +1,6 @@
-"""Mode-coupling chatter: the 2-DOF eigenvalue criterion of SPEC §5, as CasADi expressions.
+"""Mode-coupling chatter: the 2-DOF eigenvalue criterion of docs/model.md §5, as CasADi expressions.
 
-Pieces, in the order of SPEC §5:
+Pieces, in the order of docs/model.md §5:
 
 1. :func:`force_frame` — Δ: Δ_o rotated by α about −Y_o (X along the in-plane force, Y = Y_o).
 2./3. :func:`principal_2x2` — K_max, K_min and the K_max direction of the 2×2 stiffness block,
@@ -102,7 +102,7 @@ def principal_2x2(k2: ca.SX, m2: ca.SX | None = None) -> dict[str, ca.SX]:
 
 
 def thesis_process_stiffness(beta: ca.SX, k_px: ca.SX, k_py: ca.SX) -> ca.SX:
-    """K_p = [cos β; sin β]·[K_px, K_py] [N/m], shape (2, 2), in Δ's X–Y plane (SPEC §5, `thesis`).
+    """K_p = [cos β; sin β]·[K_px, K_py] [N/m], shape (2, 2), in Δ's X–Y plane (docs/model.md §5, `thesis`).
 
     Rank one: the mean force changes along its own direction (angle β from X) when the engagement
     changes (x: radial, y: axial). Rows = force components, columns = displacement components.
@@ -141,5 +141,5 @@ def stability_margin(tr: ca.SX, disc: ca.SX) -> ca.SX:
 
 
 def gamma_window_margin(gamma: ca.SX, gamma_lo: ca.SX, gamma_hi: ca.SX) -> ca.SX:
-    """Distance of γ inside the calibrated window [γ_lo, γ_hi] [rad] (> 0 stable; SPEC §5)."""
+    """Distance of γ inside the calibrated window [γ_lo, γ_hi] [rad] (> 0 stable; docs/model.md §5)."""
     return ca.fmin(gamma - gamma_lo, gamma_hi - gamma)

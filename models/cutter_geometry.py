@@ -1,4 +1,4 @@
-"""The helical cutter over one tooth period (SPEC §4, §6): a flat end mill cut into thin axial
+"""The helical cutter over one tooth period (docs/model.md §4, §6): a flat end mill cut into thin axial
 slices, slice j of flute k at the immersion angle φ = Ω t + 2πk/N − j·Δz·tan(helix)/R (the helix
 makes the upper slices lag), and which edge slices are in the engaged arc at each instant. The
 simulation (:mod:`models.dynamics`) and the Floquet criterion (:mod:`models.floquet`) step through it.
@@ -52,7 +52,7 @@ class CutterGeometry:
 
 def cutter_geometry(cut: Cut, helix_angle: float, steps: int, slices: int = DEFAULT_SLICES,
                     offset: float = 0.0) -> CutterGeometry:
-    """Angles of every edge slice over one tooth period (``steps`` instants), SPEC §4 conventions.
+    """Angles of every edge slice over one tooth period (``steps`` instants), docs/model.md §4 conventions.
 
     Args:
         cut: the cut (a_e, a_p, mode, spindle speed, flutes, radius).

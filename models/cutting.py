@@ -1,6 +1,6 @@
-"""Mechanistic cutting forces of a flat end mill (SPEC §4), `oriented` process stiffness (§5).
+"""Mechanistic cutting forces of a flat end mill (docs/model.md §4), `oriented` process stiffness (§5).
 
-Frames and signs follow SPEC §4. The cutting frame Δ_o sits at the TCP: ``Z_o`` along the feed,
+Frames and signs follow docs/model.md §4. The cutting frame Δ_o sits at the TCP: ``Z_o`` along the feed,
 ``X_o`` radial (the cutting edge at immersion φ = 0), ``Y_o = Z_o × X_o`` along the axial depth. The
 edge angle φ runs from +X_o towards +Z_o; the edge's outward direction and direction of motion are
 
@@ -165,7 +165,7 @@ def _immersion(a_e: Scalar, radius: Scalar, code: Any) -> tuple[Scalar, Scalar, 
 
 
 def immersion_angles(a_e: Scalar, radius: Scalar, mode: Any) -> tuple[Scalar, Scalar]:
-    """Entry and exit immersion angles (φ_st, φ_ex) [rad] of the engaged arc (SPEC §4).
+    """Entry and exit immersion angles (φ_st, φ_ex) [rad] of the engaged arc (docs/model.md §4).
 
     up: 0 … arccos(1 − a_e/R); down: π − arccos(1 − a_e/R) … π; slot: 0 … π (``a_e`` is ignored).
 
@@ -199,7 +199,7 @@ def _edge_magnitudes(h: Scalar, b: Scalar, k: list[Any]) -> tuple[Scalar, Scalar
 
 
 def edge_forces(phi: Scalar, h: Scalar, b: Scalar, coeffs: Any) -> tuple[Scalar, Scalar, Scalar]:
-    """Per-flute force magnitudes (F_t, F_r, F_a) [N] of one engaged edge slice (SPEC §4, §6).
+    """Per-flute force magnitudes (F_t, F_r, F_a) [N] of one engaged edge slice (docs/model.md §4, §6).
 
     F_t = K_tc b h + K_te b, F_r = K_rc b h + K_re b, F_a = K_ac b h + K_ae b. ``phi`` is accepted
     for symmetry with :func:`instantaneous_force` and not used: once h is given the magnitudes do
@@ -226,7 +226,7 @@ def _edge_force_xz(cos_phi: Scalar, sin_phi: Scalar, h: Scalar, b: Scalar, k: li
 def instantaneous_force(phi: Scalar, h: Scalar, b: Scalar, coeffs: Any) -> Any:
     """Force on the tool from one engaged edge slice, (F_xo, F_yo, F_zo) [N], CasADi 3x1.
 
-    F = −(K_tc b h + K_te b) t − (K_rc b h + K_re b) n + (K_ac b h + K_ae b) Y_o (SPEC §4). The
+    F = −(K_tc b h + K_te b) t − (K_rc b h + K_re b) n + (K_ac b h + K_ae b) Y_o (docs/model.md §4). The
     rigid chip is h = c sin φ. No engagement test is made; the caller decides.
 
     Args:
@@ -245,7 +245,7 @@ def instantaneous_force(phi: Scalar, h: Scalar, b: Scalar, coeffs: Any) -> Any:
 
 
 def _brackets(phi: Scalar, c: Scalar, k: list[Any]) -> tuple[Scalar, Scalar, Scalar]:
-    """The bracketed antiderivatives of SPEC §4 (without the N a/8π, N a/2π factors)."""
+    """The bracketed antiderivatives of docs/model.md §4 (without the N a/8π, N a/2π factors)."""
     k_tc, k_rc, k_ac, k_te, k_re, k_ae = k
     cos_phi, sin_phi = ca.cos(phi), ca.sin(phi)
     cos_2phi, sweep = ca.cos(2.0 * phi), 2.0 * phi - ca.sin(2.0 * phi)
@@ -258,9 +258,9 @@ def _brackets(phi: Scalar, c: Scalar, k: list[Any]) -> tuple[Scalar, Scalar, Sca
 def average_force(
     c: Scalar, a_e: Scalar, a_p: Scalar, mode: Any, flutes: Scalar, radius: Scalar, coeffs: Any
 ) -> Any:
-    """Tooth-period average force on the tool (F_xo, F_yo, F_zo) [N], CasADi 3x1 (SPEC §4).
+    """Tooth-period average force on the tool (F_xo, F_yo, F_zo) [N], CasADi 3x1 (docs/model.md §4).
 
-    The closed forms of SPEC §4 (the brackets evaluated from φ_st to φ_ex).
+    The closed forms of docs/model.md §4 (the brackets evaluated from φ_st to φ_ex).
 
     Args:
         c: feed per tooth [m].
@@ -338,7 +338,7 @@ def _cutting_stiffness_function() -> ca.Function:
 def cutting_stiffness(
     c: Scalar, a_e: Scalar, a_p: Scalar, mode: Any, flutes: Scalar, radius: Scalar, coeffs: Any
 ) -> dict[str, Any]:
-    """Cutting stiffness of the thesis (Appendix A, SPEC §4), by algorithmic differentiation.
+    """Cutting stiffness of the thesis (Appendix A, docs/model.md §4), by algorithmic differentiation.
 
     - ``k_pxo`` = +√(KX² + KY² + KZ²) [N/m], (KX, KY, KZ) = ∂F̄/∂a_e. For up milling a_e is exactly
       x_o = R(1 − cos φ_ex), the SPEC's variable; down milling uses the same ∂/∂a_e. In slot mode
@@ -361,7 +361,7 @@ def cutting_stiffness(
 
 
 # --------------------------------------------------------------------------------------------------
-# Oriented process stiffness (SPEC §5 step 5, `oriented`)
+# Oriented process stiffness (docs/model.md §5 step 5, `oriented`)
 # --------------------------------------------------------------------------------------------------
 
 
@@ -430,7 +430,7 @@ def _oriented_function() -> ca.Function:
 def oriented_process_stiffness(
     a_e: Scalar, a_p: Scalar, mode: Any, flutes: Scalar, radius: Scalar, coeffs: Any
 ) -> Any:
-    """Oriented process stiffness K_p [N/m], CasADi 2x2, in (X_o, Z_o) (SPEC §5 step 5, `oriented`).
+    """Oriented process stiffness K_p [N/m], CasADi 2x2, in (X_o, Z_o) (docs/model.md §5 step 5, `oriented`).
 
     K_p = (N/2π) ∫_{φ_st}^{φ_ex} ∂F(φ, h)/∂x dφ with h = c sin φ + n(φ)·x, x = (x_Xo, x_Zo) the tool
     displacement [m] in the plane normal to the tool axis: rows are force components (X_o, Z_o),

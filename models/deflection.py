@@ -1,4 +1,4 @@
-"""Static deflection along a path, mirror compensation, and the online engagement estimate (SPEC §7).
+"""Static deflection along a path, mirror compensation, and the online engagement estimate (docs/model.md §7).
 
 **Deflection.** δ = C[0:3, 0:3] · F̄ at the TCP (with CCT when ``params.cct``): the point Function's
 ``deflection`` output mapped over the samples. The machined wall's error is the component normal to
@@ -16,7 +16,7 @@ iterations solve p(q) + δ(q) = p_nominal. The residual is what the model says t
 misses by; it assumes the force does not change (the real engagement changes with the error).
 
 **Engagement estimate** (thesis Chapter 4, online). The thesis's ratio r = F̄_y/F̄_x of the measured
-mean force, in SPEC §4 axes, is the in-plane ratio F̄_zo/F̄_xo (feed over radial): the axial depth
+mean force, in docs/model.md §4 axes, is the in-plane ratio F̄_zo/F̄_xo (feed over radial): the axial depth
 cancels, the feed per tooth c is known from the feed and spindle speed, so it depends only on the
 exit angle (up milling; the entry angle in down milling) and hence on a_e = R(1 − cos φ_ex). F̄_xo
 changes sign within the range in up milling, so the angle θ = atan2(F̄_zo, F̄_xo) is inverted
@@ -207,7 +207,7 @@ def inplane_force_angle(a_e: float, c: float, mode: str, flutes: int, radius: fl
 
 def estimate_radial_depth(force_mean_o: np.ndarray, c: float, mode: str, flutes: int,
                           radius: float, coefficients, prior: float | None = None) -> float:
-    """Radial depth a_e [m] from the measured mean force (thesis Chapter 4; SPEC §7).
+    """Radial depth a_e [m] from the measured mean force (thesis Chapter 4; docs/model.md §7).
 
     Solves θ(a_e) = atan2(F̄_zo, F̄_xo) for a_e = R(1 − cos φ_ex) in (0, 2R].
 

@@ -1,4 +1,4 @@
-"""Where the static force model holds, and where the stability boundary lies (SPEC §6 (a)).
+"""Where the static force model holds, and where the stability boundary lies (docs/model.md §6 (a)).
 
 - :func:`dynamic_map`: F_PV / F_peak of the time-domain simulation over a set of poses for one cut;
   the static (averaged) force model is valid where F_PV < :data:`STATIC_VALIDITY` · F_peak.
@@ -31,7 +31,7 @@ __all__ = [
     "dynamic_map",
 ]
 
-#: F_PV / F_peak below which the static force model is taken as valid [-] (SPEC §6).
+#: F_PV / F_peak below which the static force model is taken as valid [-] (docs/model.md §6).
 STATIC_VALIDITY = 0.1
 
 

@@ -1,4 +1,4 @@
-"""Time-domain milling on the flexible arm: the 2-DOF equilibrium-chip-thickness model (SPEC §6).
+"""Time-domain milling on the flexible arm: the 2-DOF equilibrium-chip-thickness model (docs/model.md §6).
 
 The structure is the arm at the pose in the plane normal to the tool axis (:mod:`models.structure`:
 M ẍ + C ẋ + K x = F(t), x = (x_Xo, x_Zo) [m]); the cutter is cut into thin axial slices
@@ -13,7 +13,7 @@ kept per slice and angle and updated only where an edge cut (an edge that left t
 older surface, one more feed per tooth deeper: multiple regeneration); with regeneration off the
 surface is smooth and stays where it was at the start — SPEC's x_prev = 0 measured from the
 static equilibrium (``initial="static"``, the default) or from the nominal path (``"rest"``) — and
-the model is the time-periodic one whose average is the ``oriented`` process stiffness of SPEC §5.
+the model is the time-periodic one whose average is the ``oriented`` process stiffness of docs/model.md §5.
 (Why not the nominal path with ``"static"``: on the KR 210 the static deflection under the mean
 force is several feeds per tooth — about K_tc a_p/K ≈ 4 c for the thesis's cut — and against a
 surface at the nominal path the tool would simply leave the cut; the previous pass was cut at the
@@ -69,7 +69,7 @@ __all__ = [
     "tcp_mass",
 ]
 
-#: Per-step equilibrium: stop when the force changes by less than this fraction [-] (SPEC §6: 1 %).
+#: Per-step equilibrium: stop when the force changes by less than this fraction [-] (docs/model.md §6: 1 %).
 FORCE_TOLERANCE = 0.01
 #: Absolute floor of the force scale in the convergence test [N]: below it (edge out of the cut)
 #: a change of a micro-newton counts as converged.
@@ -165,7 +165,7 @@ class SimulationResult:
 
     @property
     def dynamic_ratio(self) -> float:
-        """F_PV / F_peak [-] (SPEC §6: the static force model holds below 0.1)."""
+        """F_PV / F_peak [-] (docs/model.md §6: the static force model holds below 0.1)."""
         return self.f_pv / self.f_peak if self.f_peak > 0 else 0.0
 
 
@@ -223,7 +223,7 @@ def simulate(structure: Structure, cut: Cut, feed: float, coefficients, helix_an
              regeneration: bool = True, slices: int = DEFAULT_SLICES, initial: str = "static",
              steps_per_tooth: int | None = None, window: float = 0.5,
              perturbation: float = 0.0) -> SimulationResult:
-    """Simulate the cut on the 2-DOF structure (SPEC §6).
+    """Simulate the cut on the 2-DOF structure (docs/model.md §6).
 
     Args:
         structure: M, C, K in (X_o, Z_o).
@@ -379,7 +379,7 @@ def process_stiffness_series(geo: CutterGeometry, coefficients) -> np.ndarray:
     Rows are force components, columns displacement components, in (X_o, Z_o): the sum over the
     engaged edge slices of −b (K_tc t + K_rc n) nᵀ, the x-derivative of the edge force of
     :func:`models.cutting.instantaneous_force` with h = c sin φ + n·x (linear in h, so it holds no
-    feed). Its mean over the period is the ``oriented`` K_p of SPEC §5 (a test).
+    feed). Its mean over the period is the ``oriented`` K_p of docs/model.md §5 (a test).
     """
     k = _coefficient_list(coefficients)
     k_tc, k_rc = k[0], k[1]

@@ -1,4 +1,4 @@
-"""Floquet stability of the time-periodic 2-DOF cut without regeneration (SPEC §5 `floquet`, §6).
+"""Floquet stability of the time-periodic 2-DOF cut without regeneration (docs/model.md §5 `floquet`, §6).
 
 Linearised about any trajectory that keeps every engaged edge in the cut, the structure of
 :mod:`models.dynamics` with the nominal surface obeys
@@ -6,11 +6,11 @@ Linearised about any trajectory that keeps every engaged edge in the cut, the st
     M ẍ + C ẋ + (K − K_p(t)) x = F₀(t),     K_p(t + T) = K_p(t),
 
 K_p(t) the instantaneous ∂F/∂x of the engaged edge slices (its mean is the ``oriented`` process
-stiffness of SPEC §5; :func:`models.dynamics.process_stiffness_series`), T the tooth period. The
+stiffness of docs/model.md §5; :func:`models.dynamics.process_stiffness_series`), T the tooth period. The
 forcing F₀ does not decide stability: the homogeneous system z' = A(t) z, z = (x, ẋ), does. Its
 monodromy matrix Φ(T) maps the state over one tooth period; the cut is stable iff the spectral
 radius ρ of Φ(T) is below 1. The averaged (eigen) criterion replaces K_p(t) by its mean, which is
-right only when the tooth-passing frequency is well above the arm's modes (SPEC §6's caveat).
+right only when the tooth-passing frequency is well above the arm's modes (docs/model.md §6's caveat).
 
 Φ(T) is the ordered product of exp(A(t_p + ½dt)·dt) over ``steps`` sub-steps (exponential midpoint
 rule, second order in dt). The exponentials are evaluated in one batch for many points (Taylor

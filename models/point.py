@@ -3,7 +3,7 @@
 :class:`PointModel` binds a robot, the build-time choices (process model, mass model) and the
 :class:`~models.analysis.ModelParameters`; :meth:`PointModel.analyze` evaluates the CasADi point
 Function once and checks the pose (joint limits, singularity); :meth:`PointModel.characteristic`
-maps it over feeds (SPEC §5 step 7: the stability characteristic and the feed limit of the point,
+maps it over feeds (docs/model.md §5 step 7: the stability characteristic and the feed limit of the point,
 saying whether chatter or force binds).
 """
 
@@ -38,7 +38,7 @@ JACOBIAN_SIGMA_MIN = 5e-3
 #: Length [m] that scales the Jacobian's angular rows for the rank test (about the wrist-to-TCP
 #: distance; makes the 6×6 singular values comparable in m/rad).
 JACOBIAN_LENGTH = 0.25
-#: Angle between Y_o and the tool axis [rad] above which a warning is issued (SPEC §4).
+#: Angle between Y_o and the tool axis [rad] above which a warning is issued (docs/model.md §4).
 TOOL_AXIS_WARN = np.radians(5.0)
 
 
@@ -84,7 +84,7 @@ class PointAnalysis:
     jacobian_sigma_min: float
     warnings: tuple[str, ...]
     floquet_radius: float | None = None
-    """Spectral radius of the monodromy matrix (``floquet`` criterion only; SPEC §5, §6)."""
+    """Spectral radius of the monodromy matrix (``floquet`` criterion only; docs/model.md §5, §6)."""
 
     @property
     def floquet_margin(self) -> float:
@@ -108,7 +108,7 @@ class PointAnalysis:
 
 @dataclass(frozen=True)
 class StabilityCharacteristic:
-    """γ(f) and margin(f) of one point over a feed range (SPEC §5 step 7).
+    """γ(f) and margin(f) of one point over a feed range (docs/model.md §5 step 7).
 
     Attributes:
         feeds: [m/s], shape (k,).
@@ -145,7 +145,7 @@ class PointModel:
         mass_model: ``"isotropic"`` or ``"robot"``.
         criterion: ``"eigen"``, ``"floquet"`` or ``"gamma_window"``.
         helix_angle: cutter helix angle [rad] (``floquet`` only).
-        damping_ratio: ζ of both arm modes (``floquet`` only; SPEC §6).
+        damping_ratio: ζ of both arm modes (``floquet`` only; docs/model.md §6).
 
     The ``floquet`` criterion (models.floquet) uses the robot's Cartesian mass and the oriented
     instantaneous process stiffness whatever ``process_model`` and ``mass_model`` say; the eigen

@@ -4,7 +4,7 @@ One source of truth: :class:`Robot` reads the shipped URDF into a :class:`pinocc
 every symbolic expression (TCP pose, geometric Jacobian, joint-space mass matrix) by walking *that*
 model's joint placements, joint axes and body inertias. Nothing geometric is typed twice.
 
-Conventions (SPEC §1–§2): joint values are KUKA axis values A1..A6 [rad]; the base frame is
+Conventions (docs/model.md §1–§2): joint values are KUKA axis values A1..A6 [rad]; the base frame is
 ``$ROBROOT``; the flange frame has x along the A6 axis pointing away from the robot; the TCP frame is
 the flange frame shifted by ``tcp`` [m] (flange axes) — its +x is the tool axis. The Jacobian is the
 6×n geometric Jacobian of the TCP, rows [linear; angular], base axes at the TCP origin (pinocchio's
@@ -284,7 +284,7 @@ class Robot:
     def mass_matrix_expr(self, spindle_mass: ca.SX, spindle_com: ca.SX) -> ca.SX:
         """Joint-space mass matrix M(q) [kg·m², mixed], shape (n, n), as a CasADi expression.
 
-        Built from the pinocchio model's body inertias (the URDF's, an approximation: SPEC §2) plus
+        Built from the pinocchio model's body inertias (the URDF's, an approximation: docs/model.md §2) plus
         the spindle as a point mass ``spindle_mass`` [kg] at ``spindle_com`` [m] (flange frame).
         Uses the symbols of :attr:`symbolic`.
         """

@@ -1,4 +1,4 @@
-"""Synthetic sensor signals from the milling simulation, for the supervisor (SPEC §6 (b), §9).
+"""Synthetic sensor signals from the milling simulation, for the supervisor (docs/model.md §6 (b), §9).
 
 Two signals at the simulation's output rate f_s:
 

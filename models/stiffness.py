@@ -1,4 +1,4 @@
-"""Cartesian stiffness of a serial arm: conventional (congruence) and CCT (SPEC §3).
+"""Cartesian stiffness of a serial arm: conventional (congruence) and CCT (docs/model.md §3).
 
 All functions build CasADi expressions (SX) so the planner can differentiate and map them; the few
 ``*_np`` helpers are numeric conveniences for reports.
@@ -6,7 +6,7 @@ All functions build CasADi expressions (SX) so the planner can differentiate and
 - Conventional (Mason–Salisbury): K = J⁻ᵀ K_θ J⁻¹.
 - CCT (Chen & Kao): K = J⁻ᵀ (K_θ − K_c) J⁻¹ with K_c(θ, W) = ∂(J(θ)ᵀ W)/∂θ, W = [f; m] the wrench
   acting on the tool at the TCP, base axes, held constant while differentiating. (The thesis prints
-  ∂J⁻ᵀ/∂θᵢ·F, which is dimensionally wrong; SPEC §3 fixes it to this form.)
+  ∂J⁻ᵀ/∂θᵢ·F, which is dimensionally wrong; docs/model.md §3 fixes it to this form.)
 - J is never inverted: the Cartesian compliance C = J (K_θ − K_c)⁻¹ Jᵀ, and the translational
   stiffness used everywhere (pure force at the TCP, rotations free) is K_t = (C[0:3, 0:3])⁻¹.
 """

@@ -1,6 +1,6 @@
-"""The arm's structure at a pose for the time-domain models (SPEC §6): 2-DOF in the plane normal
+"""The arm's structure at a pose for the time-domain models (docs/model.md §6): 2-DOF in the plane normal
 to the tool axis, coordinates x = (x_Xo, x_Zo) [m] along the cutting frame's X_o (radial) and Z_o
-(feed) axes (SPEC §4), M ẍ + C ẋ + K x = F(t).
+(feed) axes (docs/model.md §4), M ẍ + C ẋ + K x = F(t).
 
 M is the Cartesian translational mass at the TCP (CRBA of the URDF plus the spindle point mass,
 Λ = (J_v M_q⁻¹ J_vᵀ)⁻¹) and K the CCT translational stiffness K_t under the mean cutting force
@@ -32,7 +32,7 @@ __all__ = [
     "tcp_mass_function",
 ]
 
-#: Damping ratio of both arm modes when judging stability [-] (SPEC §6: an undamped run sits on
+#: Damping ratio of both arm modes when judging stability [-] (docs/model.md §6: an undamped run sits on
 #: the margin; 2 % is a typical structural value for a robot arm).
 DEFAULT_DAMPING_RATIO = 0.02
 
@@ -103,7 +103,7 @@ def tcp_mass_function(robot: Robot) -> ca.Function:
 
 
 def tcp_mass(robot: Robot, q: np.ndarray, params: ModelParameters) -> np.ndarray:
-    """Cartesian translational mass at the TCP [kg], shape (3, 3), base axes (SPEC §5 `robot`)."""
+    """Cartesian translational mass at the TCP [kg], shape (3, 3), base axes (docs/model.md §5 `robot`)."""
     f = tcp_mass_function(robot)
     return np.asarray(f(np.asarray(q, float), np.asarray(params.tcp, float), params.spindle_mass,
                         np.asarray(params.spindle_com, float)), float)

@@ -30,7 +30,7 @@ _COEFFICIENT_NAMES = ("k_tc", "k_rc", "k_ac", "k_te", "k_re", "k_ae")
 
 @dataclass(frozen=True)
 class Material:
-    """Mechanistic cutting coefficients of a work material with a given tool (SPEC §4).
+    """Mechanistic cutting coefficients of a work material with a given tool (docs/model.md §4).
 
     The coefficients belong to the tool–material pair they were identified with.
 
@@ -73,7 +73,7 @@ class Tool:
         name: identifier (the data file's stem, e.g. ``"em25_2f"``).
         flutes: number of flutes N [-].
         radius: tool radius R [m].
-        helix_angle: helix angle [rad]; used only by the time-domain model (SPEC §6).
+        helix_angle: helix angle [rad]; used only by the time-domain model (docs/model.md §6).
     """
 
     name: str

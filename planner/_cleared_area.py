@@ -1,6 +1,6 @@
 """What a 2.5-D path has cleared so far: per Z level, the union of the areas the tool swept.
 
-Private helper of :mod:`planner.stock` (SPEC §8, "cleared-area polygons per Z level").
+Private helper of :mod:`planner.stock` (docs/model.md §8, "cleared-area polygons per Z level").
 """
 
 from __future__ import annotations

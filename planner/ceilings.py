@@ -5,11 +5,11 @@ mapped CasADi point Function of the physics core (:func:`models.analysis.point_f
 evaluates it for any per-sample feeds in one call: force, static deflection (and its component
 normal to the machined wall), γ, the chatter margin, the spindle power.
 
-:meth:`PathModel.ceilings` turns the constraints of SPEC §8 into one number per sample: the
+:meth:`PathModel.ceilings` turns the constraints of docs/model.md §8 into one number per sample: the
 **feed ceiling**, the largest feed at which the sample meets every limit — chatter margin ≥ the
 required margin, resultant force ≤ the force limit, ‖δ‖ ≤ the deflection tolerance, spindle power ≤
 its limit — *and every feed below it does too* (the feed limit of the stability characteristic,
-SPEC §5 step 7). It is found on a log-spaced feed grid and refined by regula falsi (Illinois) on
+docs/model.md §5 step 7). It is found on a log-spaced feed grid and refined by regula falsi (Illinois) on
 the largest normalised constraint slack in log-feed, every evaluation with the full CCT model.
 Force, deflection and power grow with feed; the margin of the ``thesis`` process model falls with
 it (mostly) and that of the ``oriented`` model hardly changes, so the constraints
@@ -301,7 +301,7 @@ class PathModel:
         """Spectral radius of the monodromy matrix per engaged sample, (m,) (``floquet``).
 
         Without regeneration the time-periodic system does not depend on the feed except through
-        the CCT stiffness, which the mean force barely moves (SPEC §5: far below a degree of γ);
+        the CCT stiffness, which the mean force barely moves (docs/model.md §5: far below a degree of γ);
         it is evaluated once, at ``feed_min``, and the checker re-evaluates it at the planned
         feed of every sample.
         """

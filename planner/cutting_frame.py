@@ -1,7 +1,7 @@
 """The cutting frame along a path and the per-sample :class:`Engagement` record given in it, shared
 by both engagement sources of :mod:`planner.engagement`, with the checks of their path inputs.
 
-**Cutting frame and milling side** (SPEC §4). Z_o is the feed direction f, X_o the radial direction
+**Cutting frame and milling side** (docs/model.md §4). Z_o is the feed direction f, X_o the radial direction
 (the cutting edge at immersion φ = 0), Y_o = Z_o × X_o. The edge at φ points along
 n(φ) = cos φ X_o + sin φ Z_o and moves along t(φ) = −sin φ X_o + cos φ Z_o = (−Y_o) × n(φ), so the
 tool turns about −Y_o. A right-hand cutter turning M03 turns clockwise seen from the spindle looking

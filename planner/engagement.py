@@ -1,6 +1,6 @@
 """Engagement of the tool along a path: radial depth a_e, axial depth a_p, up/down/slot, cutting frame.
 
-Two sources (SPEC §8):
+Two sources (docs/model.md §8):
 
 * :func:`fixed_engagement` — per operation from the job file: the same a_e, a_p and mode on every
   cutting sample; only the radial direction follows the path.

@@ -21,7 +21,7 @@
 * rapid sections as LIN at the plan's feed for them (or :data:`RAPID_FEED_M_S` when it has none):
   a Cartesian PTP would need the status and turn bits, which the plan does not carry;
 * ``--compensate-deflection``: every position minus the predicted static deflection
-  ``deflection_wp_m`` (mirror compensation, SPEC §7), orientations unchanged; the program's comment
+  ``deflection_wp_m`` (mirror compensation, docs/model.md §7), orientations unchanged; the program's comment
   header says so. Air and rapid samples without a prediction (NaN) are not moved.
 
 Plans whose solve did not converge (``solver.success`` false) are refused: an unconverged
@@ -212,7 +212,7 @@ def plan_to_krl(plan: Plan | str | os.PathLike, name: str | None = None,
         pos -= np.where(bad[:, None], 0.0, d)
         dmax = float(np.nanmax(np.linalg.norm(np.where(bad[:, None], 0.0, d), axis=1))) if n else 0.0
         notes.append(f"path pre-compensated: every position minus the predicted static "
-                     f"deflection (mirror, SPEC 7); largest shift {dmax * _MM:.4f} mm")
+                     f"deflection (mirror, docs/model.md §7); largest shift {dmax * _MM:.4f} mm")
     if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(abc))):
         i = int(np.flatnonzero(~np.all(np.isfinite(np.hstack([pos, abc])), axis=1))[0])
         raise ExportError(f"{where}: sample {i} has no finite pose; re-plan the job")

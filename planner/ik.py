@@ -1,7 +1,7 @@
 """Inverse kinematics along the path, using the free rotation about the tool axis.
 
 Milling fixes five of the TCP's six degrees of freedom: its position and the direction of the tool
-axis. The rotation about the tool axis is free (SPEC §8). Each sample is solved by damped least
+axis. The rotation about the tool axis is free (docs/model.md §8). Each sample is solved by damped least
 squares (Levenberg–Marquardt) on that 5-D task with pinocchio's Jacobian, seeded from the previous
 sample — so the solution is continuous and never flips configuration — while the null space of the
 task (the free rotation, plus any slack) pushes joints away from their limits.
@@ -202,7 +202,7 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def _seeds(p: np.ndarray) -> list[np.ndarray]:
-    a1 = -math.atan2(p[1], p[0])  # A1 turns the arm towards −Y (SPEC §2)
+    a1 = -math.atan2(p[1], p[0])  # A1 turns the arm towards −Y (docs/model.md §2)
     out = []
     for a2 in (-90.0, -60.0, -120.0, -40.0):
         for a3 in (90.0, 60.0, 120.0, 30.0):

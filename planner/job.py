@@ -198,7 +198,7 @@ class EngagementSection(_Section):
 
 
 class ModelSection(_Section):
-    """``[model]``: the physics choices and calibration knobs (SPEC §5)."""
+    """``[model]``: the physics choices and calibration knobs (docs/model.md §5)."""
 
     process_model: Literal["thesis", "oriented"] = "thesis"
     mass_model: Literal["isotropic", "robot"] = "isotropic"
@@ -377,12 +377,12 @@ KEY_DOCS: dict[str, str] = {
     "stock.z_top_mm": "stock top [mm]",
     "model.process_model": "thesis (rank one, default) or oriented (Tlusty)",
     "model.mass_model": "isotropic (stiffness only) or robot (CRBA + spindle)",
-    "model.chatter_criterion": "eigen, floquet (exact for the time-periodic cut, SPEC §6) or "
+    "model.chatter_criterion": "eigen, floquet (exact for the time-periodic cut, docs/model.md §6) or "
                                "gamma_window",
     "model.gamma_window_deg": "calibrated [γ_lo, γ_hi] for gamma_window [deg]",
     "model.process_gain": "multiplies the process stiffness K_p (calibration)",
     "model.cct": "include the force-dependent CCT stiffness term",
-    "plan.method": "optimize (CasADi + IPOPT), thesis (SPEC §8 section algorithm) or constant",
+    "plan.method": "optimize (CasADi + IPOPT), thesis (docs/model.md §8 section algorithm) or constant",
     "plan.safety_factor": "thesis method: f_real = f_max / safety_factor",
     "plan.thesis_section_length_mm": "thesis method: the initial section length L_s [mm]",
     "plan.section_change_cost_s": "optimize: time-equivalent cost of a feed change of feed_max "
@@ -402,7 +402,7 @@ def reference_markdown() -> str:
     out = []
     tables = [("(top level)", None, {"material": Job.model_fields["material"]})]
     for name in ("job", "cell", "tool", "spindle", "limits", "engagement", "stock", "model",
-                 "path", "kinematics"):
+                 "plan", "path", "kinematics"):
         model = _MODELS[name]
         tables.append(("[engagement.stock]" if name == "stock" else f"[{name}]", name,
                        model.model_fields))

@@ -1,4 +1,4 @@
-"""Section boundaries and feeds by CasADi + IPOPT: the fastest cut inside every limit (SPEC §8).
+"""Section boundaries and feeds by CasADi + IPOPT: the fastest cut inside every limit (docs/model.md §8).
 
 Each ``cut`` run is first divided into *cells*, each at least ``section_length_min`` long, by
 the exact fastest split of :func:`planner.partition.fastest_split` (dynamic programming over the

@@ -30,7 +30,7 @@ class PathSamples:
         position: tool-tip (TCP) position in the robot base [m], shape (n, 3).
         position_wp: the same in the workpiece frame (``$BASE``) [m], shape (n, 3).
         tool_axis: tool axis in the robot base, unit, tip → spindle, shape (n, 3). The TCP's +x
-            axis (SPEC §1) is its negative.
+            axis (docs/model.md §1) is its negative.
         tool_axis_wp: the same in the workpiece frame, shape (n, 3).
         feed: programmed path speed of the move that ends at the sample [m/s], shape (n,);
             NaN for rapids and the first sample.

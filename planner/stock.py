@@ -1,4 +1,4 @@
-"""Engagement from a stock model (SPEC §8): a prismatic :class:`Stock` and the engagement the path
+"""Engagement from a stock model (docs/model.md §8): a prismatic :class:`Stock` and the engagement the path
 makes in it, 2.5-D (vertical tool, cleared-area polygons per Z level, :mod:`planner._cleared_area`),
 so a_e, a_p and the mode change where the path enters, leaves or re-cuts material. The cutting
 frame and the :class:`~planner.cutting_frame.Engagement` record are those of

@@ -1,4 +1,4 @@
-"""The thesis's section algorithm (SPEC §8): the baseline the optimiser has to beat.
+"""The thesis's section algorithm (docs/model.md §8): the baseline the optimiser has to beat.
 
 1. Cut every ``cut`` run into sections of length L_s (equal pieces, none longer than L_s).
 2. At each section's midpoint take the stability characteristic: f_max is the midpoint's feed

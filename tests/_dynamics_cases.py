@@ -4,7 +4,7 @@ A seeded random search over reachable, non-singular KR 210 poses (tool axis alon
 axial depths, feed per tooth and spindle speed; each candidate is judged by the Floquet criterion
 and by the averaged (``oriented``, ``robot`` mass) eigen model; cases clear of the boundary on both
 sides are kept and simulated. Used by tests/test_floquet.py and, as a table, by
-``.venv/bin/python tests/_dynamics_cases.py`` (the README's figures).
+``.venv/bin/python tests/_dynamics_cases.py`` (the figures of docs/dynamics.md).
 """
 
 from __future__ import annotations

@@ -165,7 +165,7 @@ def test_stable_iff_real_negative_iff_positive_margin_brute_force(rng, eig_fn):
 
 
 def test_margin_is_zero_at_a_double_root(eig_fn):
-    """A double negative root (a Jordan block) sits on the boundary: SPEC §5's three inequalities
+    """A double negative root (a Jordan block) sits on the boundary: docs/model.md §5's three inequalities
     (disc ≥ 0) still call it stable, the margin is exactly 0."""
     got = _evaluate(eig_fn, np.array([[-2.0, 1.0], [0.0, -2.0]]) * SCALE)
     assert got["disc"] == 0.0

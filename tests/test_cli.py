@@ -39,7 +39,7 @@ def test_analyze_case1_contract(capsys):
     # Force in base = [X_o Y_o Z_o] F_o with X_o = x, Z_o = y, Y_o = Z_o × X_o = −z.
     f = np.array(out["force_N"])
     assert np.allclose(out["force_base_N"], [f[0], f[2], -f[1]])
-    assert any("63." in w for w in out["warnings"])  # SPEC §4: Case 1's tool axis is 63° off Y_o
+    assert any("63." in w for w in out["warnings"])  # docs/model.md §4: Case 1's tool axis is 63° off Y_o
 
 
 def test_analyze_robot_mass_gives_frequencies_and_flags_change_model(capsys):
@@ -50,7 +50,7 @@ def test_analyze_robot_mass_gives_frequencies_and_flags_change_model(capsys):
     assert len(f) == 2 and all(3.0 < v < 50.0 for v in f)
     ori = _json(capsys, ["analyze", *CASE1, "--feed-mm-s", "1", "--json", "--process-model",
                          "oriented"])
-    # SPEC §5: the two process models differ by about two orders of magnitude.
+    # docs/model.md §5: the two process models differ by about two orders of magnitude.
     ratio = np.abs(ori["k_p_N_per_m"]).max() / np.abs(iso["k_p_N_per_m"]).max()
     assert ratio > 30
     conv = _json(capsys, ["analyze", *CASE1, "--feed-mm-s", "1", "--json", "--no-cct"])

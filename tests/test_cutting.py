@@ -29,22 +29,22 @@ from models.cutting import (
 )
 from models.errors import DataFileError, InputError, UnknownDataError
 
-# The SPEC §4 check cut: up milling, Al 6061, 25.4 mm two-flute end mill, 1000 rpm, 1 mm/s.
+# The docs/model.md §4 check cut: up milling, Al 6061, 25.4 mm two-flute end mill, 1000 rpm, 1 mm/s.
 A_E = 15.24e-3  # radial depth [m]
 A_P = 5.08e-3  # axial depth [m]
 RADIUS = 12.7e-3  # [m]
 FLUTES = 2
 SPINDLE_RPM = 1000.0
 FEED = 1e-3  # [m/s]
-COEFFS = np.array([9.04e8, 2.94e8, 2.78e8, 6.09e3, 6.6e3, 1.12e3])  # SPEC §4, N/m^2 and N/m
+COEFFS = np.array([9.04e8, 2.94e8, 2.78e8, 6.09e3, 6.6e3, 1.12e3])  # docs/model.md §4, N/m^2 and N/m
 
-SPEC_FORCE = np.array([37.7, 19.4, -57.5])  # [N], SPEC §4 check value (3 significant digits)
+SPEC_FORCE = np.array([37.7, 19.4, -57.5])  # [N], docs/model.md §4 check value (3 significant digits)
 SPEC_FORCE_NORM = 71.5  # [N]
 SPEC_K_PY = -1.41e4  # [N/m]
-K_PX_PRINTED_EQUATIONS = 2.65e3  # [N/m], what the thesis's printed equations give (SPEC §4)
+K_PX_PRINTED_EQUATIONS = 2.65e3  # [N/m], what the thesis's printed equations give (docs/model.md §4)
 THESIS_K_PX = 1.32e3
 """[N/m] K_px as printed in the thesis: exactly half of what its own printed equations give. Kept as
-a known discrepancy (SPEC §4): we implement the equations, not the printed number."""
+a known discrepancy (docs/model.md §4): we implement the equations, not the printed number."""
 
 CHECK_RTOL = 5e-3  # the SPEC's check values carry 3 significant digits
 QUADRATURE_RTOL = 1e-10  # Gauss-Legendre on smooth trig integrands converges to round-off
@@ -137,7 +137,7 @@ def test_average_torque_equals_tooth_average_of_tangential_force(mode: str, rati
 
 
 def test_instantaneous_force_directions() -> None:
-    """F = −F_t t − F_r n + F_a Y_o with n, t of SPEC §4, checked at φ = 0 and φ = π/2."""
+    """F = −F_t t − F_r n + F_a Y_o with n, t of docs/model.md §4, checked at φ = 0 and φ = π/2."""
     h, b = 1e-4, 2e-3
     f_t, f_r, f_a = (float(value) for value in edge_forces(0.0, h, b, COEFFS))
     assert f_t == pytest.approx(COEFFS[0] * b * h + COEFFS[3] * b, rel=1e-15)
@@ -288,7 +288,7 @@ def test_oriented_sign_anchor_zo_column_is_feed_sensitivity(mode: str) -> None:
 def test_oriented_spec_cut_is_not_symmetric_and_has_no_feed() -> None:
     k_p = oriented_np(A_E, "up")
     assert np.abs(k_p - k_p.T).max() > 0.1 * np.abs(k_p).max()
-    # Orders of magnitude of SPEC §5: oriented ≈ 1e6 N/m, thesis model ≈ 1e4 N/m.
+    # Orders of magnitude of docs/model.md §5: oriented ≈ 1e6 N/m, thesis model ≈ 1e4 N/m.
     assert 1e5 < np.abs(k_p).max() < 1e7
     # The AD integrand is a polynomial of degree 2 in (cos φ, sin φ) (so integrating its Taylor
     # coefficients is exact) and holds no feed.

@@ -1,4 +1,4 @@
-"""Time-domain milling simulation (models/dynamics.py, SPEC §6)."""
+"""Time-domain milling simulation (models/dynamics.py, docs/model.md §6)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Tests of planner/engagement.py: hand-made 2.5-D cuts whose engagement is known, the cutting-frame
-convention (SPEC §4, right-hand cutter turning M03), and the input checks.
+convention (docs/model.md §4, right-hand cutter turning M03), and the input checks.
 
 Convention under test (module docstring): Y_o = the tool axis a (tip → spindle), X_o = a × f. For a
 vertical tool (a = +Z) seen from above, X_o is the feed turned 90° counter-clockwise (its left).

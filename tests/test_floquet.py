@@ -1,4 +1,4 @@
-"""Floquet criterion vs the time-domain simulation and the averaged eigen model (SPEC §5, §6).
+"""Floquet criterion vs the time-domain simulation and the averaged eigen model (docs/model.md §5, §6).
 
 The agreement tables: cases found by a seeded random search with the physics core
 (tests/_dynamics_cases.py), clear of the boundary on both sides; each row is checked for the
@@ -34,7 +34,7 @@ def _near_alias(f_sim, result, tol_hz):
 
 
 def test_averaging_caveat_at_1000_rpm(low):
-    """SPEC §6: at 1000 rpm many averaged-stable cuts are Floquet-unstable; every averaged-unstable
+    """docs/model.md §6: at 1000 rpm many averaged-stable cuts are Floquet-unstable; every averaged-unstable
     cut is Floquet-unstable too."""
     eig_stable = np.array([c.eigen_stable for c in low])
     fl_unstable = np.array([c.floquet_growth > 0 for c in low])

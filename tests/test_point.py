@@ -23,12 +23,12 @@ from models.errors import InputError, SingularPoseError, UnreachablePoseError
 from models.point import PointModel
 from models.robot import Robot
 
-#: SPEC §4 check values of Case 1.
+#: docs/model.md §4 check values of Case 1.
 CASE1_FORCE = 71.5  # [N]
 CASE1_FORCE_O = (37.7, 19.4, -57.5)  # [N]
 CASE1_K_PY = -1.41e4  # [N/m]
 #: What the thesis's printed equations give for K_px [N/m]; the thesis prints half of it (1.32e3),
-#: a known discrepancy kept visible here (SPEC §4).
+#: a known discrepancy kept visible here (docs/model.md §4).
 CASE1_K_PX_EQUATIONS = 2.65e3
 THESIS_K_PX = 1.32e3
 
@@ -56,7 +56,7 @@ def test_case1_force_and_cutting_stiffness(point_model, case1_q, case1_cut, case
 
 
 def test_case1_reports_tool_axis_off_axial_direction(point_model, case1_q, case1_cut, case1_feed):
-    """SPEC §4: the thesis's Case 1 frame is 63° off its pose's tool axis; say so with the angle."""
+    """docs/model.md §4: the thesis's Case 1 frame is 63° off its pose's tool axis; say so with the angle."""
     res = point_model.analyze(case1_q, case1_cut, case1_feed)
     assert np.degrees(res.tool_axis_angle) == pytest.approx(63.4, abs=0.5)
     assert len(res.warnings) == 1

@@ -42,7 +42,7 @@ def test_demo_engagement_is_the_programmed_contour(demo):
     assert np.allclose(e.a_p[cutting], 0.010, atol=1e-6)
     # On the straight walls the radial depth is the 3 mm of stock the contour removes.
     assert np.median(e.a_e[cutting]) == pytest.approx(0.003, abs=2e-5)
-    # Y_o = Z_o × X_o runs along the tool axis (towards the spindle), as SPEC §4 needs.
+    # Y_o = Z_o × X_o runs along the tool axis (towards the spindle), as docs/model.md §4 needs.
     y_o = np.cross(e.feed_dir[cutting], e.radial_dir[cutting])
     assert np.allclose(y_o, demo.path.tool_axis[cutting], atol=1e-9)
 

@@ -1,5 +1,5 @@
 """Tests of models/robot.py: symbolic kinematics and inertia against pinocchio and finite
-differences, the SPEC §2 check pose, and the robot data files."""
+differences, the docs/model.md §2 check pose, and the robot data files."""
 
 from __future__ import annotations
 
@@ -132,7 +132,7 @@ def test_jacobian_derivative_matches_pinocchio_kinematic_hessian(robot, random_p
 
 
 def test_pinocchio_hessian_axes_really_are_reversed(robot, case1_q, jacobian_derivative):
-    """Guard for the SPEC §3 note: without the transpose the comparison fails. If pinocchio ever
+    """Guard for the docs/model.md §3 note: without the transpose the comparison fails. If pinocchio ever
     fixes its binding, this test says so and the transpose above must go."""
     model, _ = robot.pin_model(tcp=np.zeros(3))
     data = model.createData()
@@ -153,7 +153,7 @@ def test_jacobian_derivative_matches_finite_differences(robot, tcp, random_poses
         np.testing.assert_allclose(jacobian_derivative(q, tcp), fd, rtol=0, atol=FD_TOL)
 
 
-# ----------------------------------------------------------------------------- SPEC §2 check pose
+# ----------------------------------------------------------------------------- docs/model.md §2 check pose
 
 
 def test_flange_check_pose(robot):

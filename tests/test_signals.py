@@ -70,7 +70,7 @@ def test_signals_reject_bad_parameters(sim, kwargs, match):
 
 
 def test_simulated_signals_tune_and_trip_the_wavelet_detector():
-    """SPEC §6 (b), (c): σ of the stable-cut band from a simulated stable strain signal; a second
+    """docs/model.md §6 (b), (c): σ of the stable-cut band from a simulated stable strain signal; a second
     record of the same cut stays under the chart's limit, a chattering cut (a depth past the
     boundary) trips it within 1.5 s. (σ belongs to its cut: a deeper stable cut has a larger band.)"""
     from models import ModelParameters, load_robot

@@ -182,7 +182,7 @@ def test_compliance_with_cct_wrench(robot, tcp, random_poses, rng, sym):
 
 def test_cct_effect_is_small_at_cutting_force_levels(robot, point_model, case1_q, case1_cut,
                                                      case1_feed):
-    """SPEC §5 honest-model rule: CCT moves γ by far less than a degree for Case 1 (≈ 71 N), but
+    """docs/model.md §5 honest-model rule: CCT moves γ by far less than a degree for Case 1 (≈ 71 N), but
     it does change K_t (the switch is live)."""
     conventional = PointModel(robot, dataclasses.replace(point_model.params, cct=False))
     with_cct = point_model.analyze(case1_q, case1_cut, case1_feed)

@@ -23,7 +23,7 @@ def add_krl_flags(p: argparse.ArgumentParser, with_output: bool = True) -> None:
     g.add_argument("--controller", choices=sorted(CONTROLLERS), default="krc4",
                    help="krc4 (pages of 1400 lines, RSI hook available) or krc2 (2000 lines)")
     g.add_argument("--compensate-deflection", action="store_true",
-                   help="mirror-compensate the predicted static deflection (SPEC §7)")
+                   help="mirror-compensate the predicted static deflection (docs/model.md §7)")
     g.add_argument("--override-hook", choices=OVERRIDE_HOOKS, default="none",
                    help="supervisor hook: kvp (section number variable for KukaVarProxy) or rsi "
                         "(KR C4: RSI context with MAP2OV_PRO around the sections)")

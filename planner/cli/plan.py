@@ -78,7 +78,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--demo", action="store_true", help="plan the bundled demo job")
     p.add_argument("-o", "--output", default="out", help="output folder (default out/)")
     p.add_argument("--method", choices=METHODS, default=None,
-                   help="optimize (CasADi + IPOPT, default), thesis (SPEC §8 section algorithm) "
+                   help="optimize (CasADi + IPOPT, default), thesis (docs/model.md §8 section algorithm) "
                         "or constant (the safe constant feed)")
     p.add_argument("--safety-factor", type=float, default=None,
                    help="thesis method: f_real = f_max / safety factor (default from the job, 1.1)")

@@ -1,4 +1,4 @@
-"""``cctmill simulate``: the time-domain cut at one pose (SPEC §6), its verdicts and signals.
+"""``cctmill simulate``: the time-domain cut at one pose (docs/model.md §6), its verdicts and signals.
 
 Thin shell over :func:`models.dynamics.simulate`, :func:`models.floquet.floquet` and
 :func:`models.signals.synthetic_signals`. The pose/cut flags are those of ``cctmill analyze``; the
@@ -33,7 +33,7 @@ def register(sub) -> None:
         "simulate", help="time-domain simulation of the cut on the flexible arm (forces, chatter)",
         description="2-DOF time-domain simulation in the plane normal to the tool axis (X_o, Z_o) "
                     "with the arm's mass and stiffness at the pose, a helical cutter in axial "
-                    "slices and the equilibrium chip thickness (SPEC §6). The verdict "
+                    "slices and the equilibrium chip thickness (docs/model.md §6). The verdict "
                     "stable_predicted comes from --criterion (default floquet).")
     add_point_flags(p, with_feed=True)
     g = p.add_argument_group("simulation")

@@ -57,6 +57,15 @@ from planner.supervisor.policy import (
     Supervisor,
     SupervisorConfig,
 )
+from planner.supervisor.session import (
+    DEFAULT_SIM_DURATION_S,
+    DEFAULT_SIM_FS_HZ,
+    SessionConfig,
+    SessionSummary,
+    run_session,
+    simulated_sigma,
+    supervise,
+)
 from planner.supervisor.sim_cell import (
     ROBOTS,
     SimCell,
@@ -72,6 +81,8 @@ __all__ = [
     "Characteristic",
     "CutScenario",
     "CutTruth",
+    "DEFAULT_SIM_DURATION_S",
+    "DEFAULT_SIM_FS_HZ",
     "DEFAULT_WAVELET",
     "Detector",
     "DetectorOutput",
@@ -86,6 +97,8 @@ __all__ = [
     "ROBOTS",
     "RunTrace",
     "STATUSES",
+    "SessionConfig",
+    "SessionSummary",
     "SimCell",
     "SimulatedCut",
     "StepResult",
@@ -106,6 +119,9 @@ __all__ = [
     "margin_at",
     "plot_run",
     "run_loop",
+    "run_session",
     "select_level",
+    "simulated_sigma",
     "stabilising_direction",
+    "supervise",
 ]

@@ -8,7 +8,7 @@ A cut section of the plan carries its stability characteristic at its tightest s
 - :func:`stabilising_direction`: the sign of d margin / d feed at the current feed, by central
   difference over the characteristic's grid. When the relative slope
   |d margin / d feed| · f / max|margin| is below :data:`FLAT_MARGIN_REL` the characteristic offers
-  no stabilising direction (SPEC §9: with the ``oriented`` process model the feed hardly changes
+  no stabilising direction (docs/model.md §9: with the ``oriented`` process model the feed hardly changes
   stability) and the answer is 0;
 - :func:`feed_limit_for_force`: the largest feed whose interpolated force stays under a limit;
 - :func:`chatter_frequency`: the expected chatter frequency of the section (mode coupling: the

@@ -1,4 +1,4 @@
-"""Wavelet chatter detector: one DWT detail band monitored with a control chart (SPEC §9).
+"""Wavelet chatter detector: one DWT detail band monitored with a control chart (docs/model.md §9).
 
 **Level rule** (:func:`select_level`). The level-j detail of a DWT at sample rate f_s covers the
 band [f_s/2^(j+1), f_s/2^j]. Take the level whose band contains the expected chatter frequency f_c

@@ -4,7 +4,7 @@ One :meth:`Supervisor.step` per controller cycle: it takes the chunk of samples 
 the override the controller last confirmed, and returns a :class:`StepResult` with the override to
 command. It never raises: an internal failure returns status ``error`` and holds the last override.
 
-Policy (SPEC §9):
+Policy (docs/model.md §9):
 
 - **Where am I.** The path position is dead-reckoned from the plan: s advances by the section's
   planned feed × the applied override per unit time (the robot links report no position). The

@@ -75,7 +75,7 @@ a line means — both ways give the same toolpath to the bit, the same warnings 
 as columns and ``Toolpath.moves`` is a :class:`~robot_io.toolpath.MoveList` that builds each
 :class:`Move` on first access (about 2 µs each). Reading is linear in the input size, also for a
 10 MB single line, and never recursive. ``benchmarks/toolpath_speed.py`` measures it against
-pygcode in the same run; see the README's Performance section for the figures.
+pygcode in the same run; see docs/performance.md for the figures.
 """
 
 from __future__ import annotations

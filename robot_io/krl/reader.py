@@ -18,7 +18,7 @@ Conventions (read this before trusting a number)
   (m/s) and becomes ``Move.feed`` of LIN and CIRC moves; PTP moves are ``MoveKind.RAPID`` with
   ``feed=None``.
 * Orientation: KUKA A, B, C are Z-Y'-X'' Euler angles, R = Rz(A)·Ry(B)·Rx(C) (:func:`abc_to_matrix`);
-  the columns of R are the TCP axes in ``$BASE``. The tool axis of SPEC §1 is the TCP +x (spindle →
+  the columns of R are the TCP axes in ``$BASE``. The tool axis of docs/model.md §1 is the TCP +x (spindle →
   tip), so ``Move.tool_axis = -R[:, 0]`` (tip → spindle). ``Move.extra["abc_deg"]`` keeps (A, B, C),
   ``extra["s"]``/``extra["t"]`` the status/turn when given, ``extra["external"]`` E1–E6,
   ``extra["approx"]`` the approximation keyword and ``extra["apo_cdis"]`` [m] ``$APO.CDIS`` for
