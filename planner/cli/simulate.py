@@ -1,26 +1,25 @@
 """``cctmill simulate``: the time-domain cut at one pose (docs/model.md §6), its verdicts and signals.
 
-Thin shell over :func:`models.dynamics.simulate`, :func:`models.floquet.floquet` and
-:func:`models.signals.synthetic_signals`. The pose/cut flags are those of ``cctmill analyze``; the
-model defaults differ: the ``oriented`` process model, the ``robot`` mass and the ``floquet``
-criterion (the exact one for the time-periodic cut) decide ``stable_predicted``.
+Thin shell over :func:`planner.simulation.simulate_point` (the simulation, Floquet, the point
+model) and :func:`planner.simulation.write_signal_csv`. The pose/cut flags are those of
+``cctmill analyze``; the model defaults differ: the ``oriented`` process model, the ``robot`` mass
+and the ``floquet`` criterion (the exact one for the time-periodic cut) decide
+``stable_predicted``.
 """
 
 from __future__ import annotations
 
 import argparse
-import io
 import json
 import math
 
 import numpy as np
 
-from models.cutting import available_tools, load_tool
-from models.dynamics import DEFAULT_DAMPING_RATIO, DEFAULT_SLICES, pose_structure, simulate
+from models.cutter_geometry import DEFAULT_SLICES
 from models.errors import InputError
-from models.floquet import floquet
-from models.signals import synthetic_signals
-from planner._atomic import write_text_atomic
+from models.structure import DEFAULT_DAMPING_RATIO
+from models.tooling import available_tools
+from planner.simulation import SimulationOptions, simulate_point, write_signal_csv
 
 __all__ = ["register"]
 
@@ -69,19 +68,9 @@ def register(sub) -> None:
     p.set_defaults(run=run, process_model="oriented", mass="robot", criterion="floquet")
 
 
-def _check(args: argparse.Namespace) -> None:
-    for flag, value in (("--feed-mm-s", args.feed_mm_s), ("--duration-s", args.duration_s),
-                        ("--fs-hz", args.fs_hz)):
-        if not (math.isfinite(value) and value > 0):
-            raise InputError(flag, f"must be positive, got {value}")
-    if not 0.0 <= args.damping_ratio < 1.0:
-        raise InputError("--damping-ratio", f"must lie in [0, 1), got {args.damping_ratio}")
-    if args.slices < 1:
-        raise InputError("--slices", f"need at least 1, got {args.slices}")
-    if not math.isfinite(args.perturbation_um):
-        raise InputError("--perturbation-um", f"must be finite, got {args.perturbation_um}")
-    if not (math.isfinite(args.noise_n) and args.noise_n >= 0):
-        raise InputError("--noise-n", f"must be >= 0, got {args.noise_n}")
+#: SimulationOptions fields → the flags that set them.
+_FLAGS = {"duration": "--duration-s", "fs_hz": "--fs-hz", "damping_ratio": "--damping-ratio",
+          "slices": "--slices", "perturbation": "--perturbation-um", "noise": "--noise-n"}
 
 
 def _plot(sim, path: str) -> None:
@@ -108,44 +97,24 @@ def run(args: argparse.Namespace) -> int:
     """Run ``cctmill simulate``; print JSON or a summary."""
     from planner.cli._common import point_setup
 
-    _check(args)
+    if not (math.isfinite(args.feed_mm_s) and args.feed_mm_s > 0):
+        raise InputError("--feed-mm-s", f"must be positive, got {args.feed_mm_s}")
+    options = SimulationOptions(
+        tool=args.tool, damping_ratio=args.damping_ratio, duration=args.duration_s,
+        fs_hz=args.fs_hz, iterate=args.iterate, regeneration=not args.no_regeneration,
+        slices=args.slices, initial=args.initial, perturbation=args.perturbation_um * 1e-6,
+        noise=args.noise_n, seed=args.seed)
+    try:
+        options.check()
+    except InputError as e:
+        raise InputError(_FLAGS.get(e.field, e.field), str(e).split(": ", 1)[1]) from None
     model, q, cut = point_setup(args)
-    tool = load_tool(args.tool)
-    model.helix_angle = tool.helix_angle
-    model.damping_ratio = args.damping_ratio
-    feed = args.feed_mm_s * 1e-3
-    point = model.analyze(q, cut, feed)
-    structure = pose_structure(model.robot, model.params, q, cut, feed, args.damping_ratio)
-    sim = simulate(structure, cut, feed, model.params.coefficients, tool.helix_angle,
-                   duration=args.duration_s, fs=args.fs_hz, iterate=args.iterate,
-                   regeneration=not args.no_regeneration, slices=args.slices,
-                   initial=args.initial, perturbation=args.perturbation_um * 1e-6)
-    fl = floquet(structure, cut, model.params.coefficients, tool.helix_angle, slices=args.slices)
-    out = {
-        "f_peak_N": sim.f_peak, "f_pv_N": sim.f_pv, "f_pv_over_f_peak": sim.dynamic_ratio,
-        "static_model_valid": bool(sim.dynamic_ratio < 0.1),
-        "iterations_mean": sim.iterations_mean, "unconverged_steps": sim.unconverged_steps,
-        "dominant_frequency_hz": sim.dominant_frequency_hz,
-        "vibration_frequency_hz": sim.vibration_frequency_hz,
-        "growth_rate_per_s": sim.growth_rate, "stable_predicted": bool(point.stable),
-        "criterion": model.criterion, "stable_eigen": bool(point.stable_eigen),
-        "floquet_spectral_radius": fl.spectral_radius, "floquet_growth_rate_per_s": fl.growth_rate,
-        "floquet_frequency_hz": fl.frequency_hz,
-        "natural_frequencies_hz": structure.natural_frequencies_hz.tolist(),
-        "tooth_frequency_hz": 1.0 / sim.tooth_period, "feed_per_tooth_m": sim.feed_per_tooth,
-        "iterate": sim.iterate, "regeneration": sim.regeneration,
-        "damping_ratio": args.damping_ratio, "duration_s": args.duration_s, "fs_hz": args.fs_hz,
-        "initial": args.initial, "perturbation_um": args.perturbation_um,
-        "window_start_s": sim.window_start, "warnings": list(point.warnings),
-    }
+    report = simulate_point(model, q, cut, args.feed_mm_s * 1e-3, options)
+    sim, fl, point, structure = report.sim, report.floquet, report.point, report.structure
+    out = report.as_json()
+    out["perturbation_um"] = args.perturbation_um  # as typed (the JSON's other values are SI)
     if args.out:
-        sig = synthetic_signals(sim, np.random.default_rng(args.seed), force_noise=args.noise_n)
-        buf = io.StringIO()
-        buf.write("time_s,fx_o_N,fy_o_N,fz_o_N,resultant_N,strain,x_o_mm,z_o_mm\n")
-        data = np.column_stack([sim.time, sim.force, sig.force, sig.strain,
-                                sim.displacement * 1e3])
-        np.savetxt(buf, data, delimiter=",", fmt="%.9g")
-        write_text_atomic(args.out, buf.getvalue())
+        write_signal_csv(report, args.out)
         out["out"] = args.out
     if args.plot:
         _plot(sim, args.plot)
@@ -160,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"iterations per step {sim.iterations_mean:.2f}, dominant force frequency "
               f"{sim.dominant_frequency_hz:.1f} Hz, vibration {sim.vibration_frequency_hz:.1f} Hz, "
               f"growth {sim.growth_rate:+.2f} 1/s")
-        print(f"{model.criterion}: {verdict} (Floquet rho {fl.spectral_radius:.4f}, eigen "
+        print(f"{report.criterion}: {verdict} (Floquet rho {fl.spectral_radius:.4f}, eigen "
               f"{'stable' if point.stable_eigen else 'unstable'}); modes "
               + ", ".join(f"{f:.1f}" for f in structure.natural_frequencies_hz)
               + f" Hz, tooth {1 / sim.tooth_period:.1f} Hz")
