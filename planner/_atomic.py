@@ -11,16 +11,33 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-__all__ = ["atomic_path", "write_text_atomic"]
+from models.errors import CctmillError
+
+__all__ = ["OutputError", "atomic_path", "write_text_atomic"]
+
+
+class OutputError(CctmillError):
+    """An output file cannot be written (``path``: the file; the reason is the system's)."""
+
+    def __init__(self, path: str | os.PathLike, reason: str) -> None:
+        super().__init__(f"{path}: cannot write: {reason}; choose another output folder")
+        self.path = str(path)
 
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; on success move it over ``path``, else delete it."""
+    """Yield a temporary path beside ``path``; on success move it over ``path``, else delete it.
+
+    Raises:
+        OutputError: the folder cannot be made, or the file cannot be created or replaced.
+    """
     target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=suffix or target.suffix or ".tmp",
-                               dir=target.parent)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.",
+                                   suffix=suffix or target.suffix or ".tmp", dir=target.parent)
+    except OSError as e:
+        raise OutputError(target, e.strerror or str(e)) from e
     os.close(fd)
     tmp_path = Path(tmp)
     umask = os.umask(0)
@@ -28,7 +45,10 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     os.chmod(tmp_path, 0o666 & ~umask)  # mkstemp makes 0600; outputs are ordinary files
     try:
         yield tmp_path
-        os.replace(tmp_path, target)
+        try:
+            os.replace(tmp_path, target)
+        except OSError as e:
+            raise OutputError(target, e.strerror or str(e)) from e
     finally:
         if tmp_path.exists():
             tmp_path.unlink()

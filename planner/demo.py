@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from models.errors import CctmillError
-from planner._atomic import write_text_atomic
+from planner._atomic import OutputError, write_text_atomic
 from planner.plan_file import Plan, PlanSection
 from planner.point_setup import CASE1
 
@@ -90,7 +90,10 @@ def run_demo(out: str | Path) -> DemoResult:
     """Everything ``make demo`` shows: Case 1 (:func:`run_case1`), then the demo job
     (:func:`run_demo_job`); ``headline`` is the demo job's."""
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise OutputError(out, e.strerror or str(e)) from e
     res = run_case1(out)
     job = run_demo_job(out)
     res.written += job.written

@@ -126,7 +126,8 @@ class PlanResult:
 
     @property
     def section_rows(self) -> list[dict[str, Any]]:
-        """The sections as plan.json writes them (units in the key names; for reports)."""
+        """The sections as plan.json writes them (units in the key names; for reports). Built on
+        every access: take it once per use."""
         return [s.as_json() for s in self.plan_sections]
 
     @property
@@ -431,24 +432,24 @@ def plan_of_result(res: PlanResult) -> Plan:
                "criterion": job.model.chatter_criterion, "cct": job.model.cct},
         limits=res.limits, safety_factor=res.safety_factor, sections=res.plan_sections,
         samples=_plan_samples(res), cycle_time=res.cycle_time, process_time=res.process_time,
-        solver=SolverRecord(**{k.removesuffix("_s"): v for k, v in res.solver.as_json().items()}),
+        solver=SolverRecord.from_json(res.solver.as_json()),
         wall_times=dict(res.wall_times), summary=summary(res))
 
 
 def summary(res: PlanResult) -> dict[str, Any]:
     """Headline numbers of a plan (units in names)."""
     ev = res.evaluation
-    cut = [r for r in res.section_rows if r["kind"] == "cut"]
+    secs = res.plan_sections
     counts: dict[str, int] = {}
-    for r in res.section_rows:
-        counts[r["binding"]] = counts.get(r["binding"], 0) + 1
+    for s in secs:
+        counts[s.binding] = counts.get(s.binding, 0) + 1
     return {
         "samples": len(res.prep.path), "cut_samples": len(res.model),
-        "sections": len(res.section_rows), "cut_sections": len(cut),
+        "sections": len(secs), "cut_sections": sum(s.kind == "cut" for s in secs),
         "binding_counts": counts,
         "cut_time_s": res.cut_time,
         "cut_time_bound_s": res.cut_time_bound,
-        "robot_limited_sections": sum(1 for r in res.section_rows if r["robot_limited"]),
+        "robot_limited_sections": sum(1 for s in secs if s.robot_limited),
         "force_max_N": float(ev.force.max()) if ev.force.size else None,
         "deflection_max_mm": float(ev.deflection_norm.max() * 1e3) if ev.force.size else None,
         "deflection_normal_max_mm": (float(np.abs(ev.deflection_normal).max() * 1e3)

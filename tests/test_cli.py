@@ -155,3 +155,15 @@ def test_console_script_error_has_no_traceback():
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+
+
+def test_an_output_folder_that_cannot_be_written_is_one_line(tmp_path, capsys):
+    from planner._atomic import OutputError, write_text_atomic
+
+    blocker = tmp_path / "file"
+    blocker.write_text("x", encoding="utf-8")           # a file where a folder should be
+    with pytest.raises(OutputError, match="cannot write.*choose another output folder"):
+        write_text_atomic(blocker / "plan.json", "{}")
+    assert main(["demo", "-o", str(blocker / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("cctmill demo: error:") and "out" in err[0]

@@ -22,14 +22,15 @@ def section_table(res: PlanResult, limit: int = 40) -> str:
     def f(v, spec):
         return "—" if v is None else format(v, spec)
 
-    for r in res.section_rows[:limit]:
+    rows = res.section_rows
+    for r in rows[:limit]:
         out.append(f"{r['index']:>4} {r['kind']:5} {r['s_start_m']:7.3f}-{r['s_end_m']:<7.3f} "
                    f"{r['feed_mm_s']:9.3f} {r['binding']:11} {f(r['force_max_N'], '8.1f'):>8} "
                    f"{f(r['deflection_max_mm'], '7.3f'):>7} {f(r['margin_N_per_m'], '10.3g'):>10} "
                    f"{f(r['gamma_deg'], '7.2f'):>7} {r['time_s']:7.2f}  "
                    f"{r['line_start']}-{r['line_end']}")
-    if len(res.section_rows) > limit:
-        out.append(f"... {len(res.section_rows) - limit} more sections (plan.json, report.html)")
+    if len(rows) > limit:
+        out.append(f"... {len(rows) - limit} more sections (plan.json, report.html)")
     return "\n".join(out)
 
 
@@ -54,10 +55,10 @@ def _cmd_plan(args: argparse.Namespace) -> int:
                           for k, v in written.items()}
         print(json.dumps(doc, indent=2))
         return 0
-    s = res.section_rows
     print(section_table(res))
     print(f"\n{res.method}: cycle {res.cycle_time:.2f} s (process {res.process_time:.2f} s), "
-          f"{len(s)} sections; solver {res.solver.status} ({res.solver.iterations} iterations)")
+          f"{len(res.plan_sections)} sections; solver {res.solver.status} "
+          f"({res.solver.iterations} iterations)")
     if res.cut_time > 0:
         print(f"cutting {res.cut_time:.2f} s; no plan with sections >= "
               f"{res.limits.section_length_min * 1e3:g} mm can cut faster than "

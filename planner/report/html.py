@@ -209,14 +209,14 @@ def write_report(res, folder: str | os.PathLike) -> dict[str, Path]:
     along = plot_along_path(res, out / "plan_along_path.png")
     chars = plot_characteristics(res, out / "plan_characteristics.png")
     prep, lim = res.prep, res.limits
+    rows = res.section_rows
     summ = {"method": res.method, "cycle time [s]": f"{res.cycle_time:.2f}",
             "process time Σ L/f [s]": f"{res.process_time:.2f}",
             "cutting time [s]": (f"{res.cut_time:.2f}; no plan with sections ≥ "
                                  f"{lim.section_length_min * 1e3:g} mm can cut in less than "
                                  f"{res.cut_time_bound:.2f}"),
-            "sections (cut)": f"{len(res.section_rows)} "
-                              f"({sum(r['kind'] == 'cut' for r in res.section_rows)})",
-            "robot-limited sections": sum(r["robot_limited"] for r in res.section_rows),
+            "sections (cut)": f"{len(rows)} ({sum(r['kind'] == 'cut' for r in rows)})",
+            "robot-limited sections": sum(r["robot_limited"] for r in rows),
             "solver": f"{res.solver.status}, {res.solver.iterations} iterations, build "
                       f"{res.solver.build_time:.3f} s, solve {res.solver.solve_time:.3f} s",
             "model": f"{prep.job.model.process_model} process model, {prep.job.model.mass_model} "
@@ -230,13 +230,13 @@ def write_report(res, folder: str | os.PathLike) -> dict[str, Path]:
                      "worst |δ·X_o| [mm]": f"{np.abs(ev.deflection_normal).max() * 1e3:.3f}",
                      "lowest margin [N/m]": f"{ev.margin.min():.3g}"})
     counts: dict[str, int] = {}
-    for r in res.section_rows:
+    for r in rows:
         counts[r["binding"]] = counts.get(r["binding"], 0) + 1
     sec_rows = [[r["index"], r["kind"], f"{r['s_start_m']:.4f}", f"{r['s_end_m']:.4f}",
                  f"{r['feed_mm_s']:.3f}", r["binding"], _fmt(r["force_max_N"], ".1f"),
                  _fmt(r["deflection_max_mm"], ".3f"), _fmt(r["margin_N_per_m"]),
                  _fmt(r["gamma_deg"], ".2f"), f"{r['time_s']:.2f}",
-                 f"{r['line_start']}–{r['line_end']}", r["note"]] for r in res.section_rows]
+                 f"{r['line_start']}–{r['line_end']}", r["note"]] for r in rows]
     doc = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>cctmill plan: {html.escape(prep.job.job.name)}</title>
 <style>{_CSS}</style></head><body>
