@@ -11,6 +11,7 @@ from typing import Any
 from robot_io.apt.reader import AptReader
 from robot_io.gcode.reader import GcodeReader
 from robot_io.krl.reader import KrlReader
+from robot_io.options import OPTION_FORMATS, fix, option_name
 from robot_io.toolpath import Toolpath, ToolpathError, ToolpathReader
 
 __all__ = ["FORMATS", "READERS", "detect_format", "read_toolpath"]
@@ -34,13 +35,17 @@ def detect_format(path: str | os.PathLike) -> str:
             return fmt
     try:
         head = p.read_bytes()[:_SNIFF_BYTES].decode("utf-8", "replace").upper()
+    except FileNotFoundError as e:
+        raise ToolpathError(str(p), 0, 0, "not found; check the path") from e
     except OSError as e:
-        raise ToolpathError(str(p), 0, 0, f"cannot read: {e.strerror}") from e
+        raise ToolpathError(str(p), 0, 0, f"cannot read the file ({e.strerror}); check the path "
+                            "and its permissions") from e
     for fmt, reader in READERS.items():
         if reader.sniff(head):
             return fmt
-    raise ToolpathError(str(p), 1, 0, "unknown toolpath format; name the file .nc/.ngc (G-code), "
-                        ".apt/.cl (APT/CL) or .src (KUKA KRL), or pass format=")
+    raise ToolpathError(str(p), 0, 0, "unknown toolpath format; name the file .nc/.ngc (G-code), "
+                        ".apt/.cl (APT/CL) or .src (KUKA KRL), or give the format "
+                        f"({fix('format', 'gcode')}, apt or krl)")
 
 
 def read_toolpath(path: str | os.PathLike, strict: bool = True, format: str | None = None,
@@ -51,13 +56,35 @@ def read_toolpath(path: str | os.PathLike, strict: bool = True, format: str | No
         path: the file.
         strict: fail on the first problem (default) or collect warnings and go on.
         format: ``"gcode"``, ``"apt"`` or ``"krl"``; default: detected.
-        options: passed to the reader (e.g. ``rotary="xyzac-trunnion"`` for G-code).
+        options: passed to the reader (e.g. ``rotary="xyzac-trunnion"`` for G-code); an option of
+            another format is refused, naming the formats it applies to.
+
+    The toolpath's warnings end with the plausibility checks of
+    :func:`robot_io.diagnostics.plausibility_warnings` (units that look swapped, feeds beyond a
+    milling robot, a part wider than any cell).
     """
+    from robot_io.diagnostics import plausibility_warnings
+
     p = Path(path)
+    if not p.exists():
+        raise ToolpathError(str(p), 0, 0, "not found; check the path")
     if not p.is_file():
-        raise ToolpathError(str(p), 0, 0, "no such file")
+        raise ToolpathError(str(p), 0, 0, "is not a file; give a toolpath file")
+    if format is not None and format not in READERS:
+        raise ToolpathError(str(p), 0, 0, f"unknown format {format!r}; use one of "
+                            f"{', '.join(READERS)} ({option_name('format')})")
     fmt = format or detect_format(p)
-    reader = READERS.get(fmt)
-    if reader is None:
-        raise ToolpathError(str(p), 0, 0, f"unknown format {fmt!r}; use one of {', '.join(READERS)}")
-    return reader.read(str(p), strict=strict, **options)
+    reader = READERS[fmt]
+    for k in options:
+        formats = OPTION_FORMATS.get(k, ())
+        if formats and "*" not in formats and fmt not in formats:
+            shown = " and ".join(_FORMAT_NAMES[f] for f in formats)
+            raise ToolpathError(str(p), 0, 0, f"{option_name(k)} applies to {shown} programs "
+                                f"only; this file is {_FORMAT_NAMES[fmt]} (leave it out)")
+    tp = reader.read(str(p), strict=strict, **options)
+    tp.warnings.extend(plausibility_warnings(tp))
+    return tp
+
+
+#: How messages name the formats.
+_FORMAT_NAMES = {"gcode": "G-code", "apt": "APT/CL", "krl": "KUKA KRL"}

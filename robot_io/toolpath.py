@@ -45,7 +45,8 @@ class ToolpathError(CctmillError):
 
     Attributes:
         file: path of the file.
-        line: 1-based line number.
+        line: 1-based line number (0 when the whole file is meant: not found, unreadable; the
+            message then names only the file).
         column: 1-based column of the offending word (0 when the whole line is meant).
         reason: the problem and how to fix it, without the location.
     """
@@ -55,7 +56,8 @@ class ToolpathError(CctmillError):
         self.line = line
         self.column = column
         self.reason = reason
-        super().__init__(f"{file}:{line}:{column}: {reason}")
+        where = f"{file}:{line}:{column}" if line > 0 else file
+        super().__init__(f"{where}: {reason}")
 
 
 @dataclass(frozen=True)
@@ -344,9 +346,11 @@ def read_source_text(file: str) -> tuple[str, str]:
     try:
         with open(file, "rb") as fh:
             data = fh.read()
+    except FileNotFoundError as e:
+        raise ToolpathError(file, 0, 0, "not found; check the path") from e
     except OSError as e:
         raise ToolpathError(file, 0, 0, f"cannot read the file ({e.strerror}); check the "
-                            "path") from e
+                            "path and its permissions") from e
     try:
         return data.decode("utf-8-sig"), "utf-8"
     except UnicodeDecodeError:
@@ -355,13 +359,26 @@ def read_source_text(file: str) -> tuple[str, str]:
 
 def check_option_names(options_class: type, options: dict[str, Any], reader: str) -> None:
     """Raise :class:`~models.errors.InputError` for a keyword that ``options_class`` (a dataclass)
-    does not have; ``reader`` names the reader in the message (e.g. ``"APT"``)."""
+    does not have; ``reader`` names the reader in the message (e.g. ``"APT"``). An option of
+    another reader says which formats it applies to, in the words of the interface in use."""
     from models.errors import InputError
+    from robot_io.options import OPTION_FORMATS, option_name
 
     names = set(options_class.__dataclass_fields__)
     for k in options:
-        if k not in names:
-            raise InputError(k, f"unknown {reader} reader option; known: {sorted(names)}")
+        if k in names:
+            continue
+        formats = [f for f in OPTION_FORMATS.get(k, ()) if f != "*"]
+        if formats:
+            shown = " and ".join(_FORMAT_NAMES.get(f, f) for f in formats)
+            raise InputError(option_name(k), f"applies to {shown} programs only, not to "
+                             f"{reader} (leave it out for this file)")
+        raise InputError(option_name(k), f"unknown {reader} reader option; known: "
+                         + ", ".join(option_name(n) for n in sorted(names)))
+
+
+#: How messages name the formats.
+_FORMAT_NAMES = {"gcode": "G-code", "apt": "APT/CL", "krl": "KUKA KRL"}
 
 
 class ToolpathReader(Protocol):
@@ -439,12 +456,21 @@ def _arc_extremes(move: Move) -> np.ndarray:
     return np.array(pts)
 
 
+#: Tool axes equal to this many decimals (1e-6: CAM writes 6–7 digits) count as one.
+_AXIS_DIGITS = 6
+_DEFAULT_AXIS = (0.0, 0.0, 1.0)
+
+
 def summarize(tp: Toolpath) -> dict[str, Any]:
     """The ``cctmill inspect`` summary of a toolpath (SI, feeds in mm/min as named).
 
     ``bbox_m`` bounds every known tool-tip position: every move's end point, and for arcs the
     extreme points inside the sweep (not only the chord ends). ``length_m`` is the tool-tip path
     length of all moves with a known start (rapids included); ``cutting_length_m`` excludes rapids.
+    ``has_tool_axis`` is true only when the program tilts the tool: some tool axis differs from
+    +z (the 3-axis default); ``tool_axes`` counts the distinct tool axes it gives (to 1e-6) and
+    ``tool_axis_turning_moves`` the feed moves that change the axis (0 for indexed 3+2 work,
+    where only positioning moves turn it).
     """
     moves = tp.moves
     rapids = sum(1 for m in moves if m.kind == MoveKind.RAPID)
@@ -463,6 +489,17 @@ def summarize(tp: Toolpath) -> dict[str, Any]:
     else:
         bbox = None
     feeds = [m.feed for m in moves if m.kind != MoveKind.RAPID and m.feed is not None]
+    axes: set[tuple[float, ...]] = set()
+    turning = 0     # feed moves whose tool axis differs from the move before (simultaneous)
+    prev: tuple[float, ...] | None = None
+    for m in moves:
+        if m.tool_axis is None:
+            continue
+        ax = tuple(round(float(c), _AXIS_DIGITS) + 0.0 for c in m.tool_axis)
+        axes.add(ax)
+        if prev is not None and ax != prev and m.kind != MoveKind.RAPID:
+            turning += 1
+        prev = ax
     return {
         "file": tp.file,
         "format": tp.format,
@@ -475,7 +512,9 @@ def summarize(tp: Toolpath) -> dict[str, Any]:
         "bbox_m": bbox,
         "feed_mm_min": ({"min": min(feeds) * 60e3, "max": max(feeds) * 60e3} if feeds else None),
         "inverse_time_moves": sum(1 for m in moves if m.duration is not None),
-        "has_tool_axis": any(m.tool_axis is not None for m in moves),
+        "has_tool_axis": len(axes) > 1 or bool(axes - {_DEFAULT_AXIS}),
+        "tool_axes": len(axes),
+        "tool_axis_turning_moves": turning,
         "skipped": dict(tp.skipped),
         "warnings": [str(w) for w in tp.warnings],
     }

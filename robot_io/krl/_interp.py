@@ -2,9 +2,11 @@
 
 It runs a program the way the controller's advance run would see it, statement by statement:
 ``.dat`` data and declarations (:mod:`robot_io.krl._values`), ``$VEL.CP``/``$BASE``/``$TOOL``,
-``BAS(...)``, motions (carried out by :class:`robot_io.krl._motion.RobotState`), and calls into
-local routines and sibling modules, with a call stack for cycle protection. Everything it does not
-model but knows cannot move the robot is counted in ``Toolpath.skipped`` by category.
+``BAS(...)`` (:mod:`robot_io.krl._bas`), motions (carried out by
+:class:`robot_io.krl._motion.RobotState`), control blocks (:mod:`robot_io.krl._loops`: FOR
+unrolled, IF decided, the rest skipped or refused), and calls into local routines and sibling
+modules, with a call stack for cycle protection. Everything it does not model but knows cannot move
+the robot is counted in ``Toolpath.skipped`` by category.
 """
 
 from __future__ import annotations
@@ -12,13 +14,14 @@ from __future__ import annotations
 import os
 from collections import Counter
 from functools import partial
-from typing import Any
 
-import numpy as np
-
-from robot_io.krl._motion import Frame, RobotState, frame_from
+from robot_io.krl._bas import run_bas
+from robot_io.krl._loops import loop_context, run_block
+from robot_io.krl._motion import RobotState, frame_from
 from robot_io.krl._program import (
     BLOCKS,
+    MOTIONS,
+    SPLINE_MOTIONS,
     Routine,
     SrcFile,
     Stmt,
@@ -33,10 +36,11 @@ from robot_io.krl._values import (
     Ctx,
     Current,
     Module,
-    Unknown,
+    Var,
     Variables,
     expect_end,
 )
+from robot_io.options import fix
 from robot_io.toolpath import SourceRef, Toolpath, ToolpathError, ToolpathWarning
 
 __all__ = [
@@ -49,7 +53,8 @@ __all__ = [
 #: Deepest chain of routine calls the reader follows.
 MAX_CALL_DEPTH = 64
 #: Statements executed in one reading before the reader gives up (a cascade of sub-module calls
-#: could otherwise run for ever); a 2 500-line page run 2 000 times is 5 M.
+#: could otherwise run for ever); a 2 500-line page run 2 000 times is 5 M, and so is a FOR loop
+#: of 1 M points (``robot_io.krl._loops.MAX_UNROLLED_MOVES``) with five statements per point.
 MAX_EXECUTED_STATEMENTS = 5_000_000
 #: Warnings kept per category; further ones are only counted (``meta["warning_counts"]``).
 MAX_WARNINGS_PER_CATEGORY = 50
@@ -58,11 +63,6 @@ _AXES = tuple(f"A{i}" for i in range(1, 7))
 _EXT = tuple(f"E{i}" for i in range(1, 7))
 _POS_KEYS = frozenset(CART + _AXES + _EXT + ("S", "T"))
 
-_MOTIONS = frozenset({"PTP", "LIN", "CIRC", "PTP_REL", "LIN_REL", "CIRC_REL"})
-_UNSUPPORTED_MOTIONS = frozenset({
-    "SPLINE", "PTP_SPLINE", "ENDSPLINE", "SPL", "SLIN", "SCIRC", "SPTP", "SPTP_REL", "SLIN_REL",
-    "SCIRC_REL", "ASYPTP", "ASYCONT", "ASYSTOP", "ASYCANCEL", "MOVE_EMI",
-})
 #: Keywords of statements that run on the controller but never move the robot → skip category.
 _SKIP = {
     "HALT": "halt", "WAIT": "wait", "INTERRUPT": "interrupt", "BRAKE": "interrupt",
@@ -84,7 +84,7 @@ _BUILTIN_PREFIXES = ("EKI_", "RSI_", "ST_")
 #: System routines with those prefixes that *do* move the robot (sensor-guided motion).
 _MOVING_BUILTINS = frozenset({"RSI_MOVECORR", "ST_SKIPSENS", "ST_MOVECORR"})
 #: Keywords of statements after whose failure the robot's position is no longer known.
-_MOVING_KEYWORDS = _MOTIONS | _UNSUPPORTED_MOTIONS | frozenset(BLOCKS)
+_MOVING_KEYWORDS = MOTIONS | SPLINE_MOTIONS | frozenset(BLOCKS)
 #: Keywords that only make sense inside a block or file structure the parser already matched.
 _STRAY = frozenset(BLOCKS.values()) | frozenset({"ELSE", "CASE", "DEFAULT", "DEFDAT", "ENDDAT",
                                                  "END", "ENDFCT", "THEN"})
@@ -139,6 +139,7 @@ class Runner:
         self.robot = RobotState(self.tp, self.soft, self.warn)
         self.stack: list[tuple[tuple[str, str], str]] = []   # (key, routine name as written)
         self.executed = 0
+        self.loops: list[tuple[str, int, int, Var]] = []    # FOR loops running: name, k, line
 
     # ------------------------------------------------------------------ problems and warnings
     def warn(self, file: str, line: int, col: int, message: str, category: str) -> None:
@@ -194,7 +195,8 @@ class Runner:
         self.meta["lines"] += src.lines
         self.tp.skipped["header"] += src.header_lines
         if dat_text is not None:
-            self.run_dat(mod, dat_text, dat_path or (os.path.splitext(path)[0] + ".dat"), stem)
+            self.run_dat(mod, dat_text, dat_path or (os.path.splitext(path)[0] + ".dat"),
+                         main.name if path == "<string>" else stem)
         return mod
 
     def _read(self, path: str, at: tuple[Stmt, int] | None) -> tuple[str, str]:
@@ -220,6 +222,9 @@ class Runner:
         ctx = Ctx(mod, None)
         for st in dat.body:
             try:
+                if st.data is not None:         # NAME[i]={X …} / DECL E6POS NAME={X …}
+                    self.vars.set_data(ctx, mod.vars, mod.vars, st)
+                    continue
                 kw = st.keyword
                 toks = st.tokens
                 if kw == "DECL" or (kw in _TYPES and len(toks) > 1 and toks[1].kind == "name"):
@@ -256,34 +261,51 @@ class Runner:
         """Execute a routine's statements in order (lenient mode recovers per statement)."""
         self.stack.append(((mod.path.upper(), routine.name.upper()), routine.name))
         try:
-            ctx = Ctx(mod, routine)
-            body = routine.body
-            i = 0
-            while i < len(body):
-                st = body[i]
-                self.executed += 1
-                if self.executed > MAX_EXECUTED_STATEMENTS:
-                    raise _Problem(st.file, st.line, 0, f"more than {MAX_EXECUTED_STATEMENTS} "
-                                   "statements executed: the sub-module calls do not end",
-                                   "limit", True)
-                try:
-                    nxt = self.execute(ctx, st, i)
-                except LineError as e:
-                    if self.strict:
-                        raise _Problem(st.file, st.line, e.col, e.reason, e.category) from None
-                    self.report(st.file, st.line, e.col, e.reason, e.category)
-                    nxt = self._recover(st, i, routine)
-                except _Problem as p:
-                    if self.strict or p.fatal:
-                        raise
-                    self.warn(p.file, p.line, p.column, p.reason, p.category)
-                    self.tp.skipped[p.category] += 1
-                    nxt = self._recover(st, i, routine)
-                if nxt < 0:
-                    return
-                i = nxt
+            self.run_range(Ctx(mod, routine), 0, len(routine.body))
         finally:
             self.stack.pop()
+
+    def run_range(self, ctx: Ctx, start: int, stop: int) -> bool:
+        """Execute the routine's statements ``start`` … ``stop - 1`` (a routine, a loop body, a
+        branch); False after a RETURN."""
+        routine = ctx.routine
+        if routine is None:
+            raise ValueError("run_range needs a routine")
+        body = routine.body
+        i = start
+        while i < stop:
+            st = body[i]
+            self.executed += 1
+            if self.executed > MAX_EXECUTED_STATEMENTS:
+                raise _Problem(st.file, st.line, 0, f"more than {MAX_EXECUTED_STATEMENTS} "
+                               "statements executed: the sub-module calls or loops do not end "
+                               "(check the page calls and the loop bounds)", "limit", True)
+            try:
+                nxt = self.execute(ctx, st, i)
+            except LineError as e:
+                reason = e.reason + loop_context(self)
+                if self.strict or e.fatal:
+                    raise _Problem(st.file, st.line, e.col, reason, e.category,
+                                   e.fatal) from None
+                self.report(st.file, st.line, e.col, reason, e.category)
+                nxt = self._recover(st, i, routine)
+            except _Problem as p:
+                if self.strict or p.fatal:
+                    raise
+                self.warn(p.file, p.line, p.column, p.reason, p.category)
+                self.tp.skipped[p.category] += 1
+                nxt = self._recover(st, i, routine)
+            if nxt < 0:
+                return False
+            i = nxt
+        return True
+
+    def may_move(self, st: Stmt) -> bool:
+        """Whether a statement may move the robot (a motion, or a call that is not a known
+        non-moving routine)."""
+        kw = st.keyword
+        return (kw in MOTIONS or kw in SPLINE_MOTIONS
+                or (_is_call(st) and self._call_may_move(st.tokens[0].upper)))
 
     def _recover(self, st: Stmt, i: int, routine: Routine) -> int:
         """After a skipped statement (lenient): forget the position if it may have moved."""
@@ -294,17 +316,20 @@ class Runner:
     def execute(self, ctx: Ctx, st: Stmt, i: int) -> int:
         """Run one statement; the index of the next one (-1 after RETURN)."""
         kw = st.keyword
-        if kw in _MOTIONS:
+        if kw in MOTIONS:
             self.motion(ctx, st)
+            return i + 1
+        if st.data is not None:                 # NAME[i]={X …} / DECL E6POS NAME={X …}
+            self.vars.set_data(ctx, ctx.locals, None, st)
             return i + 1
         toks = st.tokens
         t0 = toks[0]
-        if kw in _UNSUPPORTED_MOTIONS:
+        if kw in SPLINE_MOTIONS:
             raise LineError(t0.col, f"{t0.text} (spline motion) is not supported by the reader: "
                             "write the path as LIN/CIRC motions (a CAM post option), or read with "
-                            "strict=False to skip it", "unsupported_motion")
+                            f"{fix('strict', False)} to skip it", "unsupported_motion")
         if kw in BLOCKS:
-            return self.block(ctx, st, i)
+            return run_block(self, ctx, st, i)
         if kw == "RETURN":
             return -1
         if kw == "DECL" or (kw in _TYPES and len(toks) > 1 and toks[1].kind == "name"):
@@ -334,26 +359,9 @@ class Runner:
     def _unknown_statement(text: str, col: int) -> None:
         hint = " (a bare INI is not KRL: write BAS(#INITMOV,0))" if text.upper() == "INI" else ""
         raise LineError(col, f"unknown statement {text!r}{hint}: the reader runs PTP/LIN/CIRC, "
-                        "assignments, NAME( ) calls, DECL, WAIT, HALT and the like; remove it, or "
-                        "read with strict=False to skip it", "unknown_statement")
-
-    def block(self, ctx: Ctx, st: Stmt, i: int) -> int:
-        """Skip a control block that holds no motion; one that does cannot be followed."""
-        routine = ctx.routine
-        if routine is None:                      # blocks exist only inside routines
-            return i + 1
-        body = routine.body
-        end = routine.block_end.get(i, i)
-        for inner in body[i + 1:end]:
-            if (inner.keyword in _MOTIONS or inner.keyword in _UNSUPPORTED_MOTIONS
-                    or (_is_call(inner) and self._call_may_move(inner.tokens[0].upper))):
-                raise LineError(st.tokens[0].col, f"{inner.tokens[0].text} at line {inner.line} "
-                                f"is inside {st.keyword} … {BLOCKS[st.keyword]} (lines {st.line}–"
-                                f"{body[end].line}): the reader does not run control flow around "
-                                "motion; unroll it in the program (CAM posts write straight-line "
-                                "code)", "control_flow")
-        self.tp.skipped["control_flow"] += 1
-        return end + 1
+                        "assignments, NAME( ) calls, DECL, WAIT, HALT, FOR loops and the like; "
+                        f"remove it, or read with {fix('strict', False)} to skip it",
+                        "unknown_statement")
 
     # ------------------------------------------------------------------ assignments
     def assign(self, ctx: Ctx, st: Stmt, ref: Ref, cur: Cursor) -> None:
@@ -413,17 +421,6 @@ class Runner:
         expect_end(cur)
         self.robot.apply_frame(st, col, which, frame_from(value, name, _src(st, col), col, index))
 
-    def frame_by_index(self, ctx: Ctx, st: Stmt, col: int, which: str, n: int) -> Frame:
-        """``TOOL_DATA[n]`` / ``BASE_DATA[n]`` as selected by ``BAS(#TOOL, n)`` etc.; 0 = null."""
-        if n == 0:
-            return Frame("$NULLFRAME", np.eye(4), _src(st, col), 0)
-        table = f"{which}_DATA"
-        try:
-            value: Any = self.vars.resolve(ctx, Ref(table, (n,), (), col, f"{table}[{n}]"))
-        except LineError:
-            value = None
-        return frame_from(value, f"{table}[{n}]", _src(st, col), col, n)
-
     # ------------------------------------------------------------------ calls
     def _call_may_move(self, name: str) -> bool:
         return not (name == "BAS" or name in self.ignore_calls or _builtin(name))
@@ -434,7 +431,7 @@ class Runner:
         name = tok.upper
         cur = Cursor(st.tokens, st.end_col, 2)
         if name == "BAS":
-            self.bas(ctx, st, cur)
+            run_bas(self, ctx, st, cur)
             return
         depth = 1
         while depth:                          # brackets balance on the line
@@ -461,7 +458,7 @@ class Runner:
             where = self.folder if self.folder is not None else "(no folder: text input)"
             raise LineError(tok.col, f"{tok.text}( ) is called but {tok.text}.src is not in "
                             f"{where}: put the sub-module beside the main program, or pass "
-                            f"ignore_calls=({tok.text!r},) if it does not move the robot",
+                            f"{fix('ignore_calls', [tok.text])} if it does not move the robot",
                             "missing_module")
         key = (mod.path.upper(), routine.name.upper())
         keys = [k for k, _ in self.stack]
@@ -473,48 +470,6 @@ class Runner:
         if len(self.stack) >= MAX_CALL_DEPTH:
             raise LineError(tok.col, f"calls nested deeper than {MAX_CALL_DEPTH}", "limit")
         self.run_routine(mod, routine)
-
-    def bas(self, ctx: Ctx, st: Stmt, cur: Cursor) -> None:
-        """``BAS(#CMD[, value])``: #VEL_CP/#CP_PARAMS set the feed, #TOOL/#BASE select frames."""
-        cmd = cur.next("a BAS command such as #INITMOV")
-        if cmd.kind != "enum":
-            raise LineError(cmd.col, f"expected a BAS command such as #INITMOV, found "
-                            f"{cmd.text!r}")
-        arg: Any = None
-        col = cur.col
-        if cur.accept(","):
-            col = cur.col
-            arg = self.vars.value_or_unknown(ctx, cur, st)
-        cur.expect(")", "')'")
-        expect_end(cur)
-        c = cmd.upper
-        if c in ("#VEL_CP", "#CP_PARAMS"):
-            if isinstance(arg, Unknown):
-                raise LineError(col, f"BAS({c}, …): the speed is not known here ({arg.reason})",
-                                "unknown_value")
-            self.robot.set_feed(st, col, arg, f"BAS({c})")
-        if c in ("#TOOL", "#BASE"):
-            if isinstance(arg, bool) or not isinstance(arg, float) or arg != int(arg) or arg < 0:
-                raise LineError(col, f"BAS({c}, n) needs a whole number n >= 0")
-            which = c[1:]
-            self.robot.apply_frame(st, cmd.col, which,
-                                   self.frame_by_index(ctx, st, col, which, int(arg)))
-        elif c in ("#FRAMES", "#PTP_PARAMS", "#CP_PARAMS"):
-            self._fdat_frames(ctx, st, cmd.col)
-        if c not in ("#VEL_CP", "#CP_PARAMS", "#TOOL", "#BASE"):
-            self.tp.skipped["bas"] += 1
-
-    def _fdat_frames(self, ctx: Ctx, st: Stmt, col: int) -> None:
-        """Inline forms select $TOOL/$BASE from FDAT_ACT's TOOL_NO/BASE_NO when it is known."""
-        var = self.vars.lookup(ctx, "FDAT_ACT")
-        fdat = var.value if var is not None else None
-        if not isinstance(fdat, Aggregate):
-            return
-        for which in ("TOOL", "BASE"):
-            n = fdat.fields.get(f"{which}_NO")
-            if isinstance(n, float) and n == int(n) and n >= 0:
-                self.robot.apply_frame(st, col, which,
-                                       self.frame_by_index(ctx, st, col, which, int(n)))
 
     # ------------------------------------------------------------------ motion
     def _target(self, ctx: Ctx, cur: Cursor) -> Target:

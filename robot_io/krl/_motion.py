@@ -26,6 +26,7 @@ from robot_io.krl.frames import (
     matrix_to_abc,
     rotate_about,
 )
+from robot_io.options import fix
 from robot_io.toolpath import Move, MoveKind, SourceRef, Toolpath
 
 __all__ = [
@@ -102,6 +103,7 @@ class RobotState:
         self.soft = soft
         self.warn = warn
         self.feed: float | None = None
+        self.ptp_velocity_pct: float | None = None   # PTP speed [% of the axes' maximum]
         self.apo_cdis: float | None = None
         self.cur: dict[str, float] = {}          # TCP pose in the current $BASE (mm, deg, S, T)
         self.unknown_why = "at the start of the program"
@@ -111,6 +113,8 @@ class RobotState:
         self.first_base: Frame | None = None     # $BASE at the first Cartesian motion
         self.out_from_base: np.ndarray | None = None   # 4×4 once $BASE changed mid-program
         self.pending_joint: dict[str, Any] | None = None
+        self.loop: dict[str, int] = {}           # counters of the FOR loops being unrolled
+        self.unrolled = 0                        # moves made inside loops so far
 
     # ------------------------------------------------------------------ settings
     def set_feed(self, st: Stmt, col: int, v: Any, what: str) -> None:
@@ -144,8 +148,9 @@ class RobotState:
                       f"{new.name}) and the value of {', '.join(dict.fromkeys(unknown))} is not "
                       "given in the program, so the later moves cannot be expressed in the first "
                       "base; give the frames as {FRAME: X …} literals (or BASE_DATA[n] = {FRAME: …} "
-                      "lines), keep one $BASE per program, or read with strict=False (moves are "
-                      "then read in the new base as if it were the first)", "base_change")
+                      f"lines), keep one $BASE per program, or read with {fix('strict', False)} "
+                      "(moves are then read in the new base as if it were the first)",
+                      "base_change")
             self.base = new
             return
         # re-express the current pose in the new base (for partial and relative targets)
@@ -283,6 +288,11 @@ class RobotState:
         if self.pending_joint is not None:
             extra["after_joint_move"] = self.pending_joint
             self.pending_joint = None
+        if kind is MoveKind.RAPID and self.ptp_velocity_pct is not None:
+            extra["ptp_velocity_pct"] = self.ptp_velocity_pct
+        if self.loop:
+            extra["loop"] = dict(self.loop)
+            self.unrolled += 1
         start = self.last_end
         if start is None:
             self.meta["unknown_start_moves"] += 1

@@ -4,10 +4,10 @@
 A ``.src`` is split into ``DEF … END`` routines (``DEFFCT … ENDFCT`` functions are kept but never
 run); a ``.dat`` into the statements between ``DEFDAT`` and ``ENDDAT``. ``&`` header lines and
 ``;`` comments (``;FOLD``/``;ENDFOLD`` included — the statements inside folds are kept) are dropped
-here. Control blocks (IF/FOR/WHILE/REPEAT/LOOP/SWITCH/SPLINE) are matched so the interpreter can
-skip or inspect a whole block. Problems go to ``report(file, line, col, reason, category)``, which
-raises in strict mode and records a warning in lenient mode (then the reader goes on as described
-at each call).
+here. Control blocks (IF/FOR/WHILE/REPEAT/LOOP/SWITCH/SPLINE) are matched — and each IF's ELSE —
+so the interpreter can run, skip or inspect a whole block. Problems go to
+``report(file, line, col, reason, category)``, which raises in strict mode and records a warning
+in lenient mode (then the reader goes on as described at each call).
 """
 
 from __future__ import annotations
@@ -15,11 +15,22 @@ from __future__ import annotations
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
-from robot_io.krl._syntax import LineError, Token, fast_motion, split_comment, tokenize
+from robot_io.krl._syntax import (
+    FastData,
+    LineError,
+    Token,
+    fast_data,
+    fast_motion,
+    split_comment,
+    tokenize,
+)
 
 __all__ = [
     "BLOCKS",
+    "MOTIONS",
+    "SPLINE_MOTIONS",
     "DatFile",
     "Report",
     "Routine",
@@ -37,6 +48,13 @@ BLOCKS = {
     "SWITCH": "ENDSWITCH", "SPLINE": "ENDSPLINE", "PTP_SPLINE": "ENDSPLINE",
 }
 _CLOSERS = set(BLOCKS.values())
+#: Motion statements the reader carries out.
+MOTIONS = frozenset({"PTP", "LIN", "CIRC", "PTP_REL", "LIN_REL", "CIRC_REL"})
+#: Motion statements it does not (spline and asynchronous motion).
+SPLINE_MOTIONS = frozenset({
+    "SPLINE", "PTP_SPLINE", "ENDSPLINE", "SPL", "SLIN", "SCIRC", "SPTP", "SPTP_REL", "SLIN_REL",
+    "SCIRC_REL", "ASYPTP", "ASYCONT", "ASYSTOP", "ASYCANCEL", "MOVE_EMI",
+})
 
 Report = Callable[[str, int, int, str, str], None]
 
@@ -44,21 +62,27 @@ Report = Callable[[str, int, int, str, str], None]
 class Stmt:
     """One statement: where it is, its first keyword (upper case), the column just past its end,
     and either its tokens or — for a plain ``LIN|PTP {literal}`` line — the pre-parsed ``fast``
-    form of :func:`~robot_io.krl._syntax.fast_motion` (tokens are then made only when asked for).
+    form of :func:`~robot_io.krl._syntax.fast_motion`, or — for a plain ``NAME[i]={literal}`` /
+    ``DECL E6POS NAME={literal}`` line — the ``data`` form of :func:`~robot_io.krl._syntax.fast_data`
+    (tokens are then made only when asked for).
     """
 
-    __slots__ = ("_tokens", "code", "end_col", "fast", "file", "keyword", "line")
+    __slots__ = ("_tokens", "code", "data", "end_col", "fast", "file", "keyword", "line")
 
     def __init__(self, file: str, line: int, code: str, tokens: list[Token] | None,
-                 fast: tuple[str, dict[str, float], int, str | None] | None = None) -> None:
+                 fast: tuple[str, dict[str, float], int, str | None] | None = None,
+                 data: FastData | None = None) -> None:
         self.file = file
         self.line = line
         self.code = code
         self.end_col = len(code.rstrip()) + 1
         self._tokens = tokens
         self.fast = fast
+        self.data = data
         if fast is not None:
             self.keyword = fast[0]
+        elif data is not None:
+            self.keyword = "DECL" if data[0] is not None else data[2]
         else:
             self.keyword = tokens[0].upper if tokens else ""
 
@@ -72,7 +96,9 @@ class Stmt:
 
 @dataclass
 class Routine:
-    """A ``DEF``/``DEFFCT`` routine: name as written, its statements, matched blocks."""
+    """A ``DEF``/``DEFFCT`` routine: name as written, its statements, matched blocks (opener
+    index → closer index), each IF's ELSE (IF index → ELSE index), and a cache the interpreter
+    keeps per block (what a loop body holds, worked out once however often the loop runs)."""
 
     name: str
     file: str
@@ -80,6 +106,8 @@ class Routine:
     body: list[Stmt] = field(default_factory=list)
     block_end: dict[int, int] = field(default_factory=dict)
     is_function: bool = False
+    else_at: dict[int, int] = field(default_factory=dict)
+    cache: dict[int, Any] = field(default_factory=dict)
 
 
 @dataclass
@@ -159,6 +187,10 @@ def _statements(text: str, file: str, report: Report) -> tuple[list[Stmt], int, 
         if fast is not None:
             out.append(Stmt(file, no, code, None, fast))
             continue
+        data = fast_data(code)
+        if data is not None:
+            out.append(Stmt(file, no, code, None, None, data))
+            continue
         try:
             toks = tokenize(code)
         except LineError as e:
@@ -174,6 +206,12 @@ def _match_blocks(r: Routine, report: Report) -> None:
         kw = st.keyword
         if kw in BLOCKS:
             stack.append(i)
+        elif kw == "ELSE" and stack and r.body[stack[-1]].keyword == "IF":
+            if stack[-1] in r.else_at:
+                report(st.file, st.line, st.tokens[0].col, f"a second ELSE in the IF of line "
+                       f"{r.body[stack[-1]].line}; an IF has at most one ELSE", "syntax")
+            else:
+                r.else_at[stack[-1]] = i
         elif kw in _CLOSERS:
             if stack and BLOCKS[r.body[stack[-1]].keyword] == kw:
                 r.block_end[stack.pop()] = i

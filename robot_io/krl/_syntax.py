@@ -23,11 +23,13 @@ from models.errors import CctmillError
 __all__ = [
     "Aggregate",
     "Cursor",
+    "FastData",
     "LineError",
     "MAX_KRL_NESTING",
     "MAX_KRL_VALUE",
     "Ref",
     "Token",
+    "fast_data",
     "fast_motion",
     "parse_aggregate",
     "parse_ref",
@@ -57,13 +59,16 @@ _CLOSE = {v: k for k, v in _OPEN.items()}
 
 
 class LineError(CctmillError):
-    """A problem in one line: 1-based ``col``, ``reason`` (with the fix), counting ``category``."""
+    """A problem in one line: 1-based ``col``, ``reason`` (with the fix), counting ``category``;
+    a ``fatal`` one (a limit) ends lenient reading too."""
 
-    def __init__(self, col: int, reason: str, category: str = "syntax") -> None:
+    def __init__(self, col: int, reason: str, category: str = "syntax",
+                 fatal: bool = False) -> None:
         super().__init__(reason)
         self.col = col
         self.reason = reason
         self.category = category
+        self.fatal = fatal
 
 
 class Token:
@@ -131,6 +136,46 @@ def fast_motion(code: str) -> tuple[str, dict[str, float], int, str | None] | No
         return None
     approx = m.group(4)
     return m.group(1).upper(), comps, m.start(2) + 1, approx.upper() if approx else None
+
+
+#: Position types whose ``DECL`` lines with a literal take the data fast path.
+_POS_TYPES = r"(?:E6POS|POS|FRAME)"
+_FAST_DATA = re.compile(
+    rf"[ \t]*(?:(DECL)[ \t]+(?:(GLOBAL)[ \t]+)?({_POS_TYPES})[ \t]+)?"
+    rf"([A-Za-z_][A-Za-z0-9_]*)[ \t]*(?:\[[ \t]*([0-9]+)[ \t]*\])?[ \t]*=[ \t]*(\{{)[ \t]*"
+    rf"(?:({_POS_TYPES})[ \t]*:[ \t]*)?"
+    rf"({_FIELD_NAME}{_SEP}{_NUM}(?:[ \t]*,[ \t]*{_FIELD_NAME}{_SEP}{_NUM})*)[ \t]*\}}[ \t]*$",
+    re.IGNORECASE)
+#: Names that are keywords, never the variable of a data line.
+_KEYWORDS = frozenset({"DECL", "GLOBAL", "CONST", "DEF", "DEFDAT", "DEFFCT", "END", "ENDDAT",
+                       "IF", "FOR", "WHILE", "REPEAT", "LOOP", "SWITCH", "PTP", "LIN", "CIRC"})
+
+#: ``(declared type or None, global, name, index or None, components, column of '{', literal
+#: type or None)`` of a data line (see :func:`fast_data`).
+FastData = tuple[str | None, bool, str, int | None, dict[str, float], int, str | None]
+
+
+def fast_data(code: str) -> FastData | None:
+    """The commonest line of a converter's ``.dat``, ``NAME[i]={X 1.5,Y -2,...}`` or
+    ``DECL [GLOBAL] E6POS|POS|FRAME NAME={...}``, with a Cartesian literal of plain numbers, read
+    with one regular expression (names upper case); ``None`` for anything else or anything
+    doubtful (a repeated component, a number out of range, a declared array with a value), which
+    then goes through :func:`tokenize`."""
+    if "{" not in code:
+        return None
+    m = _FAST_DATA.match(code)
+    if m is None:
+        return None
+    decl, glob, typ, name, index, _, lit_type, body = m.groups()
+    if (decl is not None and index is not None) or name.upper() in _KEYWORDS:
+        return None
+    fields = _FIELD.findall(body)
+    comps = {k.upper(): float(v) for k, v in fields}
+    if len(comps) != len(fields) or any(abs(v) > MAX_KRL_VALUE for v in comps.values()):
+        return None
+    return (typ.upper() if typ else None, glob is not None, name.upper(),
+            None if index is None else int(index), comps, m.start(6) + 1,
+            lit_type.upper() if lit_type else None)
 
 
 def split_comment(raw: str) -> str:

@@ -17,6 +17,7 @@ from typing import Any
 
 from robot_io.krl._program import Routine, SrcFile, Stmt
 from robot_io.krl._syntax import Aggregate, Cursor, LineError, Ref, parse_value
+from robot_io.options import fix
 
 __all__ = [
     "CART",
@@ -31,6 +32,12 @@ __all__ = [
 
 #: Components of a Cartesian KRL position/frame (mm, deg).
 CART = ("X", "Y", "Z", "A", "B", "C")
+
+_CART_EXAMPLE = "={X …,Y …,Z …,A …,B …,C …}"
+_AXIS_EXAMPLE = "={A1 …,A2 …,A3 …,A4 …,A5 …,A6 …}"
+#: How a message suggests setting an element of an array of each type.
+_EXAMPLES = {"FRAME": _CART_EXAMPLE, "POS": _CART_EXAMPLE, "E6POS": _CART_EXAMPLE,
+             "AXIS": _AXIS_EXAMPLE, "E6AXIS": _AXIS_EXAMPLE}
 
 
 class Unknown:
@@ -53,12 +60,33 @@ class Current:
 
 @dataclass
 class Var:
-    """A declared (or implicitly assigned) variable; arrays keep their elements in ``elems``."""
+    """A declared (or implicitly assigned) variable; arrays keep their elements in ``elems``;
+    ``source`` is where it was declared (``file:line``, empty when not declared)."""
 
     type: str | None
     value: Any
     dims: tuple[int, ...] = ()
     elems: dict[tuple[int, ...], Any] = field(default_factory=dict)
+    source: str = ""
+
+    def check_index(self, ref: Ref) -> None:
+        """KRL arrays run from 1 to their declared size: anything else is an error."""
+        if not self.dims or ref.index is None or len(ref.index) != len(self.dims):
+            return
+        for k, n in zip(ref.index, self.dims, strict=True):
+            if not 1 <= k <= n:
+                size = ",".join(map(str, self.dims))
+                raise LineError(ref.col, f"{ref.text}: the index {k} is outside the array "
+                                f"{ref.name}[{size}] (declared at {self.source or 'its DECL'}; "
+                                "KRL indices run from 1 to the size)", "unknown_value")
+
+    def unset(self, ref: Ref) -> Unknown:
+        """The value of an element the program never sets."""
+        where = f"declared at {self.source}, " if self.source else ""
+        example = _EXAMPLES.get(self.type or "", " = …")
+        index = ",".join(map(str, ref.index or ()))
+        return Unknown(f"{ref.name}[{index}] is {where}never set in the program: give it a "
+                       f"value, e.g. a line {ref.name}[{index}]{example} in the .dat")
 
 
 @dataclass
@@ -121,10 +149,12 @@ class Variables:
             raise LineError(ref.col, f"undeclared variable {ref.text}: declare it in "
                             f"{ctx.module.name}.dat (e.g. DECL E6POS {name}={{X 0,Y 0,Z 0,A 0,B 0,"
                             f"C 0}} or DECL REAL {name}=0.002), or pass the .dat that declares it "
-                            "with global_dat=", "undeclared")
+                            f"with {fix('global_dat', ['its.dat'])}", "undeclared")
         if ref.index:
-            value = var.elems.get(ref.index, Unknown(f"{name}{list(ref.index)} is never set in "
-                                                     "the program"))
+            var.check_index(ref)
+            value = var.elems.get(ref.index)
+            if value is None:
+                value = var.unset(ref)
         else:
             value = var.value
         for f in ref.fields:
@@ -196,7 +226,8 @@ class Variables:
                         break
                     cur.expect(",", "',' or ']'")
             var = Var(typ.upper, Unknown(f"{nm.text} is declared at {st.file}:{st.line} "
-                                         "without a value"), tuple(dims))
+                                         "without a value"), tuple(dims),
+                      source=f"{st.file}:{st.line}")
             if cur.accept("="):
                 var.value = self.value_or_unknown(ctx, cur, st)
             (self.globals if is_global else scope)[nm.upper] = var
@@ -216,10 +247,36 @@ class Variables:
             var = Var(None, Unknown(f"{ref.name} is not declared in the program"))
             (self.globals if scope is None else scope)[ref.name] = var
         if ref.index:
+            var.check_index(ref)
             old = var.elems.get(ref.index, Unknown("never set"))
             var.elems[ref.index] = _merge(old, ref.fields, value)
         else:
             var.value = _merge(var.value, ref.fields, value)
+
+    def set_data(self, ctx: Ctx, scope: dict[str, Var], new_scope: dict[str, Var] | None,
+                 st: Stmt) -> None:
+        """A data line pre-parsed by :func:`~robot_io.krl._syntax.fast_data`: the same as
+        :meth:`declare` (into ``scope``) or :meth:`assign` (a new name goes to ``new_scope``)."""
+        data = st.data
+        if data is None:
+            raise ValueError("set_data needs a statement with a data form")
+        typ, is_global, name, index, comps, col, lit_type = data
+        value = Aggregate(lit_type, dict(comps), col)
+        if typ is not None:
+            (self.globals if is_global else scope)[name] = Var(typ, value,
+                                                               source=f"{st.file}:{st.line}")
+            return
+        var = self.lookup(ctx, name)
+        if var is None:
+            var = Var(None, Unknown(f"{name} is not declared in the program"))
+            (self.globals if new_scope is None else new_scope)[name] = var
+        if index is None:
+            var.value = _merge(var.value, (), value)
+            return
+        key = (index,)
+        var.check_index(Ref(name, key, (), 1 + len(st.code) - len(st.code.lstrip()),
+                            f"{name}[{index}]"))
+        var.elems[key] = _merge(var.elems.get(key), (), value)
 
 
 def _merge(old: Any, fields: tuple[str, ...], value: Any) -> Any:

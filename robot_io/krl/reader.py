@@ -8,8 +8,9 @@ run); ``$VEL.CP`` (m/s; a literal, a REAL variable or simple arithmetic); ``$BAS
 (``{FRAME: …}`` literals, FRAME variables, ``BASE_DATA[n]``/``TOOL_DATA[n]``, ``$NULLFRAME``);
 ``BAS(#TOOL,n)``/``BAS(#BASE,n)``; ``PTP``/``LIN``/``CIRC`` to inline literals (with or without a
 ``E6POS:``-style type prefix) or named positions, with ``C_DIS``/``C_VEL``/``C_ORI``/``C_PTP``;
-``CIRC aux, end[, CA angle]``; ``LIN_REL``/``PTP_REL`` (translation only); and calls ``NAME( )`` to
-local routines or to ``NAME.src`` beside the program (paged programs), in program order.
+``CIRC aux, end[, CA angle]``; ``LIN_REL``/``PTP_REL`` (translation only); ``FOR`` loops and ``IF``
+blocks the program decides (below); and calls ``NAME( )`` to local routines or to ``NAME.src``
+beside the program (paged programs), in program order.
 
 Conventions (read this before trusting a number)
 ------------------------------------------------
@@ -53,8 +54,17 @@ Conventions (read this before trusting a number)
   that is known (INFERRED from KUKA's inline-form code).
 * Feed: a LIN/CIRC before any ``$VEL.CP`` is an error in strict mode (the controller would use a
   speed the program does not state), a warning with ``feed=None`` in lenient mode.
-  ``BAS(#VEL_CP, v)`` and ``BAS(#CP_PARAMS, v)`` (inline forms) also set the feed to v m/s
-  (INFERRED: the inline form's LIN "Vel" is m/s). ``$VEL.CP`` above 3 m/s gets a warning.
+  ``BAS(#VEL_CP, v)``/``BAS(#CP_PARAMS, v)`` (inline forms) set it to v m/s (v may be
+  ``LDAT_ACT.VEL``); ``BAS(#CP_DAT)`` and ``$VEL.CP = LCPDAT1.VEL`` take an LDAT's VEL (m/s).
+  PTP speeds (``BAS(#PTP_PARAMS/#VEL_PTP, p)``, ``BAS(#PTP_DAT)``) go to
+  ``extra["ptp_velocity_pct"]`` (% of the axes' maximum; INFERRED, :mod:`~robot_io.krl._bas`).
+  ``$VEL.CP`` above 3 m/s gets a warning.
+* Loops (:mod:`~robot_io.krl._loops`): a ``FOR`` with a declared INT counter and bounds the reader
+  evaluates is unrolled (nested, ``STEP``, ``PTS[I+1]`` from .dat/.src arrays); its moves keep the
+  motion's line as ``Move.source`` and the counters in ``extra["loop"]`` (``{"I": 17}``), at most
+  :data:`MAX_UNROLLED_MOVES` in all. An element used but never set, or outside the declared size,
+  is ``unknown_value``. An ``IF`` the program decides (constants, known variables, counters) runs
+  its branch; WHILE/REPEAT/LOOP/SWITCH and run-time IFs are skipped without motion, else refused.
 * Calls: a local ``DEF`` first, then ``NAME.src`` in the program's folder (case-insensitive; its
   ``.dat`` is read too), then KUKA system routines that do not move the robot (``BAS``, message and
   string routines, ``EKI_*``, ``RSI_*``/``ST_*`` except the sensor-guided motions), then
@@ -69,8 +79,8 @@ Conventions (read this before trusting a number)
   counted in ``Toolpath.skipped`` by category, without a warning: ``header``, ``system_variable``
   (``$APO.CDIS``, ``$ADVANCE`` — also in ``meta["advance"]`` —, ``$ORI_TYPE`` …), ``io``, ``wait``,
   ``halt``, ``interrupt``, ``trigger``, ``bas``, ``builtin_call``, ``ignored_call``, ``declaration``
-  (EXT, SIGNAL, ENUM, STRUC), ``label``, ``control_flow`` (an IF/LOOP/FOR/… block without motion
-  or calls inside), ``joint_move``.
+  (EXT, SIGNAL, ENUM, STRUC), ``label``, ``control_flow`` (a block it does not run — a run-time
+  IF, WHILE, LOOP … — with no motion or calls inside), ``joint_move``.
 * Problems: strict mode (default) raises :class:`~robot_io.toolpath.ToolpathError`
   ``file:line:col: reason`` on the first one; lenient mode warns (category), counts the skipped
   statement in ``Toolpath.skipped`` under the same category, and forgets the position after a
@@ -78,17 +88,19 @@ Conventions (read this before trusting a number)
   strings, misplaced END/ENDIF …), ``undeclared``/``unknown_value``, ``no_feed``,
   ``unsupported_motion`` (SPLINE/SPL/SLIN/SCIRC/SPTP, ASYPTP, CIRC_REL, ``$IPO_MODE = #TCP``, axis
   targets for LIN, orientation in LIN_REL), ``control_flow`` (motion or calls inside
-  IF/LOOP/FOR/WHILE/REPEAT/SWITCH, GOTO), ``missing_module``, ``recursive_call``, ``bad_arc``,
+  WHILE/REPEAT/LOOP/SWITCH or a run-time IF, a FOR that cannot be unrolled, GOTO, EXIT),
+  ``missing_module``, ``recursive_call``, ``bad_arc``,
   ``unknown_position``, ``base_change``, ``unknown_statement``. A DEF/DEFDAT name that differs from
   the file name is only a warning (``module_name``): it does not change the path.
 * ``Toolpath.meta``: ``program``, ``modules`` (files in the order first read), ``encoding``,
   ``lines``, ``base``, ``tool``, ``base_changes``, ``tool_changes``, ``joint_moves``,
   ``unknown_start_moves``, ``advance``, ``ipo_mode``, ``warning_counts``.
 
-Implementation: ``_krl_syntax`` (one line → tokens, literals, expressions; plain ``LIN|PTP {…}``
-lines take a one-regex fast path, about 50 µs per line in all), ``_krl_program`` (files → routines
-and matched blocks), ``_krl_values`` (scopes and variables), ``_krl_motion`` (feed, frames, pose →
-``Move``), ``_krl_geometry`` (ABC, frames, circles) and ``_krl_interp`` (the statement loop, calls).
+Implementation (``robot_io.krl``): ``_syntax`` (one line → tokens, literals, expressions; plain
+``LIN|PTP {…}`` and ``NAME[i]={…}`` lines take a one-regex fast path), ``_program`` (files →
+routines and matched blocks), ``_values`` (scopes and variables), ``_motion`` (feed, frames, pose →
+``Move``), ``frames`` (ABC, frames, circles), ``_bas`` (BAS and motion data), ``_loops`` and
+``_conditions`` (control blocks) and ``_interp`` (the statement loop, calls).
 """
 
 from __future__ import annotations
@@ -104,6 +116,7 @@ from robot_io.krl._interp import (
     MAX_WARNINGS_PER_CATEGORY,
     Runner,
 )
+from robot_io.krl._loops import MAX_UNROLLED_MOVES
 from robot_io.krl._motion import PLAUSIBLE_VEL_CP
 from robot_io.krl._program import read_text
 from robot_io.krl._syntax import MAX_KRL_VALUE
@@ -126,6 +139,7 @@ __all__ = [
     "MAX_CALL_DEPTH",
     "MAX_EXECUTED_STATEMENTS",
     "MAX_KRL_VALUE",
+    "MAX_UNROLLED_MOVES",
     "MAX_WARNINGS_PER_CATEGORY",
     "PLAUSIBLE_VEL_CP",
     "abc_to_matrix",
@@ -213,7 +227,7 @@ def read_krl(path: str | os.PathLike[str], strict: bool = True, **options: Any) 
     file = os.fspath(path)
     opts = KrlOptions.from_kwargs(**options)
     if not os.path.isfile(file):
-        raise ToolpathError(file, 0, 0, "no such file; check the path of the .src")
+        raise ToolpathError(file, 0, 0, "not found; check the path of the .src")
     runner = Runner(file, strict, opts.ignore_calls, os.path.dirname(file) or ".")
     return _run(runner, opts, file, None, None)
 
