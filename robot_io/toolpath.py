@@ -437,22 +437,47 @@ def arc_geometry(move: Move) -> dict[str, Any]:
 
 
 def _arc_extremes(move: Move) -> np.ndarray:
-    """Points of an arc that bound its box: ends plus the axis-extreme points inside the sweep."""
+    """Points of an arc that bound its box exactly: the ends and every axis-extreme point inside
+    the sweep, in closed form.
+
+    Coordinate k of x(θ) = c + r (cos θ u + sin θ v) + axial·θ/sweep n is f(θ) = A cos θ +
+    B sin θ + Cθ + const, with A = r u_k, B = r v_k, C = axial n_k / sweep; f'(θ) =
+    −R sin(θ − φ) + C = 0 (R = √(A² + B²), φ = atan2(B, A)), i.e. θ = φ + asin(C/R) or
+    θ = φ + π − asin(C/R), when |C| ≤ R. Of the repeats θ₀ + 2πm of such an angle inside the sweep (a helix of many turns
+    has many), the box needs only the first and the last, since f(θ + 2π) = f(θ) + 2πC is
+    monotone in m. At most 14 points, whatever the number of turns.
+    """
     geo = arc_geometry(move)
     pts = [move.start, move.end]
     r, sweep, u, v, n = geo["radius"], geo["sweep"], geo["u"], geo["v"], geo["normal"]
-    # x(θ) = c + r (cos θ u + sin θ v) + axial·θ/sweep n; extreme of coordinate k where
-    # tan θ = v_k / u_k (ignoring the linear axial term, whose extremes are the end points).
+    two_pi = 2.0 * math.pi
+    span = abs(sweep)
+    sign = 1.0 if sweep >= 0 else -1.0
+    offset = ((move.start - move.center) @ n) * n
+    axial = geo["axial"]
     for k in range(3):
-        base = math.atan2(v[k], u[k])
-        for cand in (base, base + math.pi):
-            for shift in range(-int(abs(sweep) // (2 * math.pi)) - 1,
-                               int(abs(sweep) // (2 * math.pi)) + 2):
-                th = cand + 2 * math.pi * shift
-                if (0 < th < sweep) or (sweep < th < 0):
-                    frac = th / sweep
-                    pts.append(move.center + r * (math.cos(th) * u + math.sin(th) * v)
-                               + ((move.start - move.center) @ n) * n + geo["axial"] * frac * n)
+        a_k, b_k = r * u[k], r * v[k]
+        big_r = math.hypot(a_k, b_k)
+        c_k = axial * n[k] / sweep if sweep else 0.0
+        if big_r <= 0.0 or abs(c_k) > big_r:
+            continue
+        phi = math.atan2(b_k, a_k)
+        lift = math.asin(max(-1.0, min(1.0, c_k / big_r)))
+        for cand in (phi + lift, phi + math.pi - lift):
+            # angles sign·t with t in (0, span): t = t0 + 2πm, m = 0 … m_last
+            t0 = (sign * cand) % two_pi
+            if t0 <= 0.0:
+                t0 += two_pi
+            if t0 >= span:
+                continue
+            m_last = max(math.floor((span - t0) / two_pi), 0)
+            for m in {0, m_last}:
+                t = t0 + two_pi * m
+                if not 0.0 < t < span:
+                    continue
+                th = sign * t
+                pts.append(move.center + r * (math.cos(th) * u + math.sin(th) * v) + offset
+                           + axial * (th / sweep) * n)
     return np.array(pts)
 
 
