@@ -434,16 +434,6 @@ def test_error_fields_and_lenient_skips_exactly_what_it_says() -> None:
     assert tp.meta["warning_counts"] == {"missing_feed": 1}
 
 
-def test_unknown_records_warn_also_in_strict_mode() -> None:
-    tp = read_apt_text(PRE + "FOOBAR/1,2\nGOTO/1,0,0\nFOOBAR\nORIGIN/1,2,3\nTOOL PATH/X,TOOL,M\n"
-                       "PAINT/COLOR,3\nCOOLNT/ON\n$$ just a comment\n\nEND-OF-PATH")
-    assert tp.skipped == {"unknown_record": 3}
-    assert tp.meta["warning_counts"] == {"unknown_record": 3}
-    assert [(w.source.line, w.source.column) for w in tp.warnings] == [(5, 1), (7, 1), (8, 1)]
-    assert "'FOOBAR'" in tp.warnings[0].message
-    assert tp.meta["record_counts"]["TOOL PATH"] == 1 and len(tp.moves) == 2
-
-
 def test_ten_megabyte_lines_are_linear() -> None:
     n = 10_000_000
     cases = [
@@ -452,6 +442,7 @@ def test_ten_megabyte_lines_are_linear() -> None:
         ("GOTO/1," + " " * n + "2x,3", n + 8, "bad number '2x'"),
         ("FEDRAT/" + "M" * n, 8, "longer than 40 characters"),
         ("GOTO/1,2,3 " + "$" + " " * n + "\n4", 10, "bad number '3 4'"),   # joined: "3 4"
+        ("Q" * n, 1, "unknown record 'QQQQ"),
     ]
     for line, col, what in cases:
         t0 = time.perf_counter()
@@ -460,10 +451,10 @@ def test_ten_megabyte_lines_are_linear() -> None:
         assert time.perf_counter() - t0 < 5.0
     t0 = time.perf_counter()
     tp = read_apt_text(PRE + "PPRINT " + "$x" * (n // 2) + "\nGOTO/1,2,3 $$" + "c" * n
-                       + "\n" + "Q" * n + "\nGOTO/4,5,6")
+                       + "\n" + "Q" * n + "\nGOTO/4,5,6", strict=False)
     assert time.perf_counter() - t0 < 5.0
     assert [_mm(m.end) for m in tp.moves[1:]] == [[1, 2, 3], [4, 5, 6]]
-    assert tp.skipped == {"unknown_record": 1} and len(tp.warnings[0].message) < 80
+    assert tp.skipped == {"Q" * 24 + "…": 1} and len(tp.warnings[0].message) < 200
 
 
 FUZZ_PROGRAM = """PARTNO/FUZZ
@@ -514,7 +505,8 @@ def test_fuzz_only_toolpath_errors(rng: np.random.Generator, tmp_path: Path) -> 
         except ToolpathError:
             outcomes["error"] += 1
         summarize(read_apt(path, strict=False))   # lenient never raises
-    assert outcomes["ok"] > 30 and outcomes["error"] > 30
+    # a mutated major word is an unknown record, refused in strict mode: most mutants fail
+    assert outcomes["ok"] > 10 and outcomes["error"] > 200
 
 
 # --------------------------------------------------------------------------- semantics
@@ -638,7 +630,7 @@ def test_reader_object_options_and_file_errors(tmp_path: Path) -> None:
         read_apt_text(PRE, default_units="furlong")
     with pytest.raises(InputError, match="arc_radius_tol"):
         read_apt_text(PRE, arc_radius_tol=-1.0)
-    with pytest.raises(ToolpathError, match="cannot read the file"):
+    with pytest.raises(ToolpathError, match="not found|cannot read the file"):
         read_apt(tmp_path / "missing.apt")
     # a wider arc tolerance accepts a coarse CAM rounding
     text = PRE + "GOTO/10,0,0\nCIRCLE/0,0,0,0,0,1\nGOTO/0,10.01,0"

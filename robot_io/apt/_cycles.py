@@ -19,7 +19,7 @@ def cycle_(run: Run, rec: rc.Record) -> None:
     toks = run.tokens(rec)
     if not toks or not isinstance(toks[0][0], str):
         run.bad(run.field_offset(rec, 0), f"CYCLE needs a type (DRILL, DEEP2, …, OFF); "
-                f"{rc.FIX}")
+                f"{rc.fix_or_skip()}")
     kind = toks[0][0]
     if kind == "OFF":
         run.cycle = None
@@ -29,9 +29,14 @@ def cycle_(run: Run, rec: rc.Record) -> None:
     if kind == "ON":
         if run.last_cycle is None:
             run.bad(run.field_offset(rec, 0), f"CYCLE/ON without an earlier cycle "
-                    f"definition; {rc.FIX}")
+                    f"definition; {rc.fix_or_skip()}")
         run.cycle = run.last_cycle
         return
+    if kind not in rc.DRILL_CYCLES:
+        run.cycle = None   # lenient: the GOTOs until CYCLE/OFF are read as plain moves
+        run.bad(run.field_offset(rec, 0), f"CYCLE/{rc.short(kind)} is not a drilling cycle this "  # type: ignore[arg-type]
+                f"reader expands ({', '.join(sorted(rc.DRILL_CYCLES))}): it may move the tool in "
+                f"ways not modelled; {rc.fix_or_skip()}", "unsupported_cycle")
     params: dict[str, float | str] = {}
     feed: tuple[float, bool] | None = None
     i = 1
@@ -39,12 +44,12 @@ def cycle_(run: Run, rec: rc.Record) -> None:
         key, idx = toks[i]
         if not isinstance(key, str) or i + 1 >= len(toks):
             run.bad(run.field_offset(rec, idx), f"CYCLE/{kind}: expected keyword,value "
-                    f"pairs (FEDTO,depth,MMPM,feed,RAPTO,clearance,RTRCTO,retract); {rc.FIX}")
+                    f"pairs (FEDTO,depth,MMPM,feed,RAPTO,clearance,RTRCTO,retract); {rc.fix_or_skip()}")
         val = toks[i + 1][0]
         if key in rc.FEED_WORDS:
             if not isinstance(val, float) or not val > 0:
                 run.bad(run.field_offset(rec, toks[i + 1][1]), f"CYCLE/{kind}: {key} "
-                        f"needs a positive feed; {rc.FIX}")
+                        f"needs a positive feed; {rc.fix_or_skip()}")
             unit, per_rev = rc.FEED_WORDS[key]
             feed = (val * unit / (1.0 if per_rev else 60.0), per_rev)  # type: ignore[operator]
         else:
@@ -56,16 +61,16 @@ def cycle_(run: Run, rec: rc.Record) -> None:
         v = params.get(key, default)
         if isinstance(v, str):
             run.bad(run.field_offset(rec, next(j for t, j in toks if t == key) + 1),
-                    f"CYCLE/{kind}: {key} needs a number, got {v!r}; {rc.FIX}")
+                    f"CYCLE/{kind}: {key} needs a number, got {v!r}; {rc.fix_or_skip()}")
         return None if v is None else float(v) * s
 
     depth = dist("FEDTO", None)
     if depth is None or not depth > 0:
         run.bad(run.field_offset(rec, 0), f"CYCLE/{kind} needs FEDTO,depth (> 0, measured "
-                f"from the hole point against the tool axis); {rc.FIX}")
+                f"from the hole point against the tool axis); {rc.fix_or_skip()}")
     if feed is None:
         run.bad(run.field_offset(rec, 0), f"CYCLE/{kind} needs its feed (MMPM,f / IPM,f / "
-                f"MMPR,f / IPR,f); {rc.FIX}")
+                f"MMPR,f / IPR,f); {rc.fix_or_skip()}")
     clear = dist("RAPTO", 0.0)
     retract = dist("RTRCTO", None)
     info = {"line": rec.line, "type": kind, "depth_m": depth, "rapto_m": clear,

@@ -10,11 +10,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from robot_io.apt import _records as rc
+from robot_io.options import fix
 
 if TYPE_CHECKING:
     from robot_io.apt._interp import Run
 
-__all__ = ["direction", "frame_", "point", "trntyp"]
+__all__ = ["direction", "frame_", "point", "trntyp", "vector"]
 
 
 def _norm(v: tuple[float, ...]) -> float:
@@ -37,6 +38,16 @@ def point(run: Run, vals: list[float]) -> rc.Vec:
         q = _rot(r, p)
         p = (q[0] + t[0], q[1] + t[1], q[2] + t[2])
     return p
+
+
+def vector(run: Run, vals: list[float]) -> rc.Vec:
+    """``vals[0:3]`` in the units in force as a displacement [m] (turned, not moved, by the frame
+    with ``apply_frames``)."""
+    s = run.length_scale()
+    v = (vals[0] * s, vals[1] * s, vals[2] * s)
+    if run.opts.apply_frames and run.frame is not None:
+        v = _rot(run.frame[0], v)
+    return v
 
 
 def direction(run: Run, vals: list[float], first: int, what: str) -> rc.Vec:
@@ -78,12 +89,13 @@ def frame_(run: Run, rec: rc.Record) -> None:
     if err > rc.FRAME_ORTHONORMAL_TOL or np.linalg.det(rm) < 0:
         run.bad(run.field_offset(rec, 0), f"{rec.word}: the rotation part is not a proper "
                 f"rotation (|RᵀR − I| = {err:.2g}, det = {np.linalg.det(rm):.3g}); the "
-                f"columns of R must be orthonormal axes; {rc.FIX}")
+                f"columns of R must be orthonormal axes; {rc.fix_or_skip()}")
     if run.opts.apply_frames:
         if run.meta["trntyp"] == "WORLD":
-            run.warn(rec.col, "frames_on_world_data", "apply_frames=True on a file that "
-                     "declares TRNTYP/WORLD: its points are already in the world frame and "
-                     "are moved a second time; read without apply_frames")
+            run.warn(rec.col, "frames_on_world_data", f"frames are applied "
+                     f"({fix('apply_frames', True)}) to a file that declares TRNTYP/WORLD: its "
+                     "points are already in the world frame and are moved a second time; read "
+                     "without applying the frames")
         run.frame = (rows, t)  # type: ignore[assignment]
     zn = _norm((rows[0][2], rows[1][2], rows[2][2]))
     z_axis = (rows[0][2] / zn, rows[1][2] / zn, rows[2][2] / zn)

@@ -2,17 +2,19 @@
 
 Conventions are documented in :mod:`robot_io.apt.reader`. This module holds a reading's state
 (:class:`Run`), the record loop and the field parsers, the emission of moves and the result; the
-records are handled in :mod:`robot_io.apt._motion` (GOTO, FROM, RAPID, TLAXIS, MULTAX, CIRCLE),
-:mod:`robot_io.apt._cycles` (CYCLE), :mod:`robot_io.apt._frames` (CSYS, MSYS, TRNTYP) and
-:mod:`robot_io.apt._modal` (units, feed, spindle, tools and the other modal words). The hot path
-keeps plain floats and tuples; numpy arrays are made once per move in :meth:`Run.build_moves`.
+records are handled in :mod:`robot_io.apt._motion` (GOTO, GODLTA, FROM, RAPID, TLAXIS, MULTAX,
+CIRCLE), :mod:`robot_io.apt._spline` (NURBS, KNOT, CNTRL), :mod:`robot_io.apt._cycles` (CYCLE),
+:mod:`robot_io.apt._frames` (CSYS, MSYS, TRNTYP), :mod:`robot_io.apt._modal` (units, feed, spindle,
+tools and the other modal words) and :mod:`robot_io.apt._words` (the records refused by name,
+unknown records, the path-neutral words). The hot path keeps plain floats and tuples; numpy arrays
+are made once per move in :meth:`Run.build_moves`.
 """
 
 from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -34,7 +36,19 @@ from robot_io.apt._modal import (
     toolno,
     units_,
 )
-from robot_io.apt._motion import circle_, from_, goto, multax, orphan_circle, rapid_, tlaxis
+from robot_io.apt._motion import (
+    circle_,
+    from_,
+    godlta,
+    goto,
+    multax,
+    orphan_circle,
+    rapid_,
+    tlaxis,
+)
+from robot_io.apt._spline import SPLINE_PARTS, Spline, close_spline, cntrl, knot, nurbs_
+from robot_io.apt._words import PATH_NEUTRAL, REFUSED, refuse, unknown
+from robot_io.options import fix
 from robot_io.toolpath import Move, MoveKind, SourceRef, Toolpath, ToolpathError, ToolpathWarning
 
 if TYPE_CHECKING:
@@ -42,17 +56,20 @@ if TYPE_CHECKING:
 
 __all__ = ["HANDLERS", "Run", "run_program"]
 
-#: The record handlers by major word; a record whose word is not here is skipped with a warning
-#: (or silently: ``_records.SILENT_RECORDS``).
+#: The record handlers by major word, the refused words (``_words.REFUSED``) included; a word
+#: that is not here is path-neutral (``_words.PATH_NEUTRAL``, passed over) or unknown (refused in
+#: strict mode, skipped with a warning in lenient mode).
 HANDLERS: dict[str, Callable[[Run, rc.Record], None]] = {
-    "GOTO": goto, "FROM": from_, "RAPID": rapid_, "FEDRAT": fedrat,
+    "GOTO": goto, "FROM": from_, "RAPID": rapid_, "FEDRAT": fedrat, "GODLTA": godlta,
     "CIRCLE": circle_, "TLAXIS": tlaxis, "MULTAX": multax,
+    "NURBS": nurbs_, "KNOT": knot, "CNTRL": cntrl,
     "UNITS": units_, "UNIT": units_, "CSYS": frame_, "MSYS": frame_,
     "TRNTYP": trntyp, "SPINDL": spindl, "CUTTER": cutter,
     "TLDATA": tldata, "CSI_SET_FLUTE_LENGTH": cutter_length,
     "CSI_SET_EXTENSION_LENGTH": cutter_length, "LOAD": load,
-    "TOOLNO": toolno, "SELECT": select, "CUTCOM": cutcom,
+    "TOOLNO": toolno, "LOADTL": toolno, "SELECT": select, "CUTCOM": cutcom,
     "CYCLE": cycle_, "PARTNO": partno, "FINI": fini,
+    **{w: refuse for w in REFUSED},
 }
 
 
@@ -75,7 +92,7 @@ class Run:
         self.meta: dict[str, Any] = {
             "program": None, "units_declared": [], "frames": [], "trntyp": None,
             "cutters": [], "selected_tools": [], "cycles": [], "multax": None,
-            "apply_frames": opts.apply_frames,
+            "apply_frames": opts.apply_frames, "splines": [], "listing_header": [],
         }
         self.units: str | None = None
         self.scale = rc.MM if opts.default_units == "mm" else rc.INCH
@@ -87,6 +104,8 @@ class Run:
         self.missing_feed_warned = False
         self.rapid = False
         self.circle: tuple | None = None    # (rec, centre, axis, radius|None, turns)
+        self.spline: Spline | None = None   # the spline whose KNOT/CNTRL records are being read
+        self.spline_count = 0
         self.cycle: dict | None = None
         self.last_cycle: dict | None = None
         self.rpm: float | None = None
@@ -156,7 +175,7 @@ class Run:
         if args.count(",") >= rc.MAX_RECORD_FIELDS:
             self.bad(self.field_offset(rec, rc.MAX_RECORD_FIELDS),
                      f"{rec.word} has more than {rc.MAX_RECORD_FIELDS} fields; a CL record is short "
-                     f"— is a line break missing? {rc.FIX}")
+                     f"— is a line break missing? {rc.fix_or_skip()}")
         return [f.strip(" \t") for f in args.split(",")]
 
     def number(self, rec: rc.Record, f: str, idx: int) -> float:
@@ -174,10 +193,10 @@ class Run:
             reason = f"{f!r} is not a finite number"
         else:
             reason = f"bad number {rc.short(f)!r}: write a plain decimal such as -12.5 or .984808"
-        self.bad(self.field_offset(rec, idx), f"{rec.word}: {reason}; {rc.FIX}")
+        self.bad(self.field_offset(rec, idx), f"{rec.word}: {reason}; {rc.fix_or_skip()}")
         raise AssertionError  # pragma: no cover  (bad() raised)
 
-    def numbers(self, rec: rc.Record, counts: tuple[int, ...], usage: str) -> list[float]:
+    def numbers(self, rec: rc.Record, counts: Collection[int], usage: str) -> list[float]:
         """All fields as numbers, their count one of ``counts``."""
         args = rec.args or ""
         if args.count(",") < rc.MAX_RECORD_FIELDS and rc.NUMBERS.fullmatch(args):
@@ -194,7 +213,7 @@ class Run:
                   else len(rec.text.rstrip(" \t")))
             self.bad(at, f"{rec.word} takes {usage}, got {len(vals)} number"
                      f"{'' if len(vals) == 1 else 's'}; complete the record (truncated line?) "
-                     f"or {rc.FIX}")
+                     f"or {rc.fix_or_skip()}")
         return vals
 
     def tokens(self, rec: rc.Record) -> list[tuple[float | str, int]]:
@@ -214,9 +233,11 @@ class Run:
     def run(self, text: str) -> Toolpath:
         if text.startswith("\ufeff"):
             text = text[1:]
+        first, self.meta["listing_header"] = rc.listing_header(text)
         handlers = HANDLERS
+        neutral = PATH_NEUTRAL
         nrec = 0
-        for body, line, pieces in rc.records(text):
+        for body, line, pieces in rc.records(text, first):
             nrec += 1
             rec = self.head(body, line, pieces)
             if rec is None:
@@ -235,20 +256,28 @@ class Run:
                     orphan_circle(self, f"{rc.short(word)} at line {line}")
                 except rc.Skip:
                     pass
+            if self.spline is not None and word not in SPLINE_PARTS:
+                try:
+                    close_spline(self)
+                except rc.Skip:
+                    pass
             try:
                 handler = handlers.get(word)
                 if handler is not None:
                     handler(self, rec)
-                elif word not in rc.SILENT_RECORDS:
-                    self.skipped["unknown_record"] += 1
-                    self.warn(rec.col, "unknown_record", f"unknown record {rc.short(word)!r} "
-                              "skipped")
+                elif word not in neutral:
+                    unknown(self, rec)
             except rc.Skip:
                 pass
         self.rec = None
         if self.circle is not None:
             try:
                 orphan_circle(self, "the end of the file")
+            except rc.Skip:
+                pass
+        if self.spline is not None:
+            try:
+                close_spline(self)
             except rc.Skip:
                 pass
         return self.finish(nrec)
@@ -275,7 +304,7 @@ class Run:
             rec = rc.Record("", None, 0, body, line, k + 1, pieces)
             try:
                 self.bad(k, f"not an APT record: {rc.short(body.strip())!r} does not start with a "
-                         f"major word such as GOTO; {rc.FIX}", rec=rec)
+                         f"major word such as GOTO; {rc.fix_or_skip()}", rec=rec)
             except rc.Skip:
                 pass
             return None
@@ -285,11 +314,11 @@ class Run:
         rest = body[m.end():]
         rec = rc.Record(word, None, m.end(), body, line, m.start(1) + 1, pieces)
         if rest.strip(" \t"):
-            if word in HANDLERS:
+            if word in HANDLERS and word not in REFUSED:
                 self.record_counts[word] += 1
                 try:
                     self.bad(m.end(), f"{word}: expected '/' after the major word, found "
-                             f"{rc.short(rest.strip())!r}; {rc.FIX}", rec=rec)
+                             f"{rc.short(rest.strip())!r}; {rc.fix_or_skip()}", rec=rec)
                 except rc.Skip:
                     pass
                 return None
@@ -342,10 +371,12 @@ class Run:
     def finish(self, nrec: int) -> Toolpath:
         if self.units is None and self.default_units_line is not None:
             self.warn(0, "no_units", f"no UNITS record before the first coordinate: read as "
-                      f"{self.opts.default_units} (pass default_units='inch' if the data are in "
-                      "inches)", line=self.default_units_line)
+                      f"{self.opts.default_units} (give {fix('default_units', 'inch')} if the "
+                      "data are in inches)", line=self.default_units_line)
         self.meta["warning_counts"] = dict(self.warn_counts)
         self.meta["record_counts"] = dict(self.record_counts)
+        self.meta["ignored_records"] = {w: n for w, n in self.record_counts.items()
+                                        if w in PATH_NEUTRAL}
         self.meta["records"] = nrec
         return Toolpath(file=self.file, format="apt", units=self.units or self.opts.default_units,
                         moves=self.build_moves(), warnings=self.warnings, skipped=self.skipped,

@@ -1,8 +1,9 @@
 """APT/CL records (private to :mod:`robot_io.apt`): constants, the line splitter, number rules.
 
 ``records(text)`` turns the text into logical records (``$$`` comments and ``$`` continuations
-resolved) with the physical line each starts on; the interpreter in ``robot_io.apt._interp`` parses
-their heads and fields. Conventions are documented in :mod:`robot_io.apt`.
+resolved) with the physical line each starts on; ``listing_header(text)`` finds the text header NX
+puts before a CLSF it lists; the interpreter in ``robot_io.apt._interp`` parses the records' heads
+and fields. Conventions are documented in :mod:`robot_io.apt.reader`.
 """
 
 from __future__ import annotations
@@ -11,19 +12,23 @@ import re
 from collections.abc import Iterator
 
 from models.errors import CctmillError
+from robot_io.options import fix
 
 __all__ = [
     "ARC_MIN_RADIUS",
+    "CHORD_TOL",
     "CYCLE_POSITION_TOL",
+    "DRILL_CYCLES",
     "FEED_RETRACT_CYCLES",
     "FEED_WORDS",
-    "FIX",
     "FRAME_ORTHONORMAL_TOL",
     "HEAD",
     "INCH",
     "MAX_ARC_TURNS",
+    "MAX_LISTING_HEADER_LINES",
     "MAX_NUMBER_CHARS",
     "MAX_RECORD_FIELDS",
+    "MAX_SPLINE_MOVES",
     "MAX_WARNINGS_PER_CATEGORY",
     "MM",
     "NONFINITE",
@@ -31,7 +36,7 @@ __all__ = [
     "NUMBERS",
     "PECK_WORDS",
     "Record",
-    "SILENT_RECORDS",
+    "SPLINE_START_TOL",
     "Skip",
     "TEXT_HEAD",
     "TEXT_WORDS",
@@ -40,6 +45,8 @@ __all__ = [
     "Vec",
     "WORD",
     "cut_comment",
+    "fix_or_skip",
+    "listing_header",
     "records",
     "short",
 ]
@@ -67,17 +74,30 @@ ARC_MIN_RADIUS = 1e-9
 MAX_ARC_TURNS = 1000
 #: Warnings kept per category; more are only counted in ``meta["warning_counts"]``.
 MAX_WARNINGS_PER_CATEGORY = 50
+#: Default chord tolerance of spline flattening [m]: 10 µm, the planner's default
+#: ``[path] chord_tol_mm = 0.01`` (the planner passes the job's value).
+CHORD_TOL = 1e-5
+#: A spline whose first CNTRL repeats its start point may miss the tool position by this much [m]:
+#: NX writes 4 decimals (±0.05 µm in mm, ±1.3 µm in inches); 10 µm (as CYCLE_POSITION_TOL) also
+#: passes a rounded re-export but not a spline that starts elsewhere.
+SPLINE_START_TOL = 1e-5
+#: Most linear moves one spline may become; a wild control polygon or a tiny chord tolerance is
+#: refused rather than filling memory (the real NX splines need well under 1000).
+MAX_SPLINE_MOVES = 100_000
+#: An NX information-listing header is looked for in this many lines at the top of the file (its
+#: five lines, rules and blank lines fit with room to spare).
+MAX_LISTING_HEADER_LINES = 40
 
 UNIT_WORDS = {"MM": ("mm", MM), "INCHES": ("inch", INCH), "INCH": ("inch", INCH),
           "IN": ("inch", INCH)}
 FEED_WORDS = {"MMPM": (MM, False), "IPM": (INCH, False), "MMPR": (MM, True),
                "IPR": (INCH, True)}
-SILENT_RECORDS = frozenset({"COOLNT", "PPRINT", "INSERT", "REMARK", "END", "PAINT", "TOOL PATH",
-                     "END-OF-PATH", "MACHIN", "CLRSRF", "OPSTOP", "STOP", "DELAY"})
 FEED_RETRACT_CYCLES = frozenset({"TAP", "BORE", "REAM"})
+#: The CYCLE types expanded as "feed in along the axis, back out" (others are refused).
+DRILL_CYCLES = frozenset({"DRILL", "DEEP", "DEEP2", "BRKCHP", "TAP", "BORE", "REAM", "CSINK",
+                          "CBORE"})
 TEXT_WORDS = frozenset({"PPRINT", "INSERT", "PARTNO", "REMARK"})
 PECK_WORDS = ("1STPECK", "SUBPECK", "STEP")
-FIX = "fix the record or read with strict=False to skip it"
 
 _NUM = r"[+-]?+(?:\d++\.?+\d*+|\.\d++)(?:[eE][+-]?+\d++)?+"
 NUMBER = re.compile(_NUM)
@@ -89,6 +109,15 @@ TEXT_HEAD = re.compile(r"[ \t]*+(PPRINT|INSERT|PARTNO|REMARK)(?![A-Za-z0-9_])", 
 NONFINITE = frozenset({"NAN", "+NAN", "-NAN", "INF", "+INF", "-INF", "INFINITY", "+INFINITY",
                         "-INFINITY"})
 Vec = tuple[float, float, float]
+_LISTING_START = re.compile(r"[ \t]*information[ \t]+listing[ \t]+created[ \t]+by[ \t]*:", re.I)
+_LISTING_RULE = re.compile(r"[ \t]*={3,}[ \t]*")
+_LISTING_ITEM = re.compile(r"[ \t]*[A-Za-z][A-Za-z0-9 \t_.()-]*:.*")
+
+
+def fix_or_skip() -> str:
+    """The end of a message about a bad record, in the words of the interface in use (made when
+    the message is, never at import)."""
+    return f"fix the record or read leniently ({fix('strict', False)}) to skip it"
 
 
 class Skip(CctmillError):
@@ -126,11 +155,41 @@ def cut_comment(raw: str, text_record: bool) -> tuple[str, bool]:
     return raw, False
 
 
-def records(text: str) -> Iterator[tuple[str, int, list[tuple[int, int]] | None]]:
-    """(record text, start line, pieces or None) for every non-blank logical record."""
-    lines = text.split("\n")
+def listing_header(text: str) -> tuple[int, list[str]]:
+    """The header NX writes before a CLSF it lists (``Information listing created by : …``,
+    ``Date : …``, … up to a rule of ``=``), at the top of ``text`` only: (lines it takes, the
+    header lines), or ``(0, [])``. Blank lines and rules before it and blank lines after it are
+    part of it; any other line before the closing rule means there is no header."""
+    lines = [ln.rstrip("\r") for ln in
+             text.split("\n", MAX_LISTING_HEADER_LINES)[:MAX_LISTING_HEADER_LINES]]
     n = len(lines)
     i = 0
+    while i < n and (not lines[i].strip() or _LISTING_RULE.fullmatch(lines[i])):
+        i += 1
+    if i == n or not _LISTING_START.match(lines[i]):
+        return 0, []
+    first = i
+    while first > 0 and lines[first - 1].strip():   # a rule right above belongs to it
+        first -= 1
+    i += 1
+    while i < n and not _LISTING_RULE.fullmatch(lines[i]):
+        if lines[i].strip() and not _LISTING_ITEM.fullmatch(lines[i]):
+            return 0, []
+        i += 1
+    if i == n:
+        return 0, []
+    end = i + 1
+    while end < n and not lines[end].strip():
+        end += 1
+    return end, lines[first:i + 1]
+
+
+def records(text: str, first: int = 0) -> Iterator[tuple[str, int, list[tuple[int, int]] | None]]:
+    """(record text, start line, pieces or None) for every non-blank logical record, from the
+    line with index ``first`` (line numbers stay those of ``text``)."""
+    lines = text.split("\n")
+    n = len(lines)
+    i = first
     text_head = TEXT_HEAD.match
     while i < n:
         raw = lines[i]

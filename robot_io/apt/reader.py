@@ -10,7 +10,8 @@ ignored, as in APT source). In the free-text records ``PPRINT``, ``INSERT``, ``P
 text. A UTF-8 BOM is dropped; files that are not UTF-8 are read as Latin-1 (``meta["encoding"]``).
 Error and warning locations use the physical line where the record *starts*; the column is the
 physical column of the offending field (1-based), and the message names the continuation line when
-the field sits on one. ``Move.source`` is the ``GOTO`` (for arcs: the ``CIRCLE``) record.
+the field sits on one. ``Move.source`` is the ``GOTO`` (for arcs: the ``CIRCLE``, for splines:
+the ``NURBS``) record.
 
 Conventions (read this before trusting a number)
 ------------------------------------------------
@@ -79,22 +80,56 @@ Conventions (read this before trusting a number)
 * ``SPINDL/n,RPM,CLW`` (any order; ``CCLW``; ``OFF``; ``ON``) sets ``Move.spindle_rpm`` (0 while
   off). ``LOAD/TOOL,n`` (and ``TOOLNO/n``) sets ``Move.tool``. ``CUTTER/d,r,e,f,α,β,h`` (the APT
   cutter), CAMWorks' ``CSI_SET_FLUTE_LENGTH``/``CSI_SET_EXTENSION_LENGTH`` and NX's ``TLDATA`` go to
-  ``meta["cutters"]`` (lengths in metres); ``SELECT/TOOL,n`` to ``meta["selected_tools"]``.
+  ``meta["cutters"]`` (lengths in metres); ``SELECT/TOOL,n`` to ``meta["selected_tools"]``,
+  ``PARTNO`` to ``meta["program"]``, ``TRNTYP`` to ``meta["trntyp"]``; ``LOADTL/n`` sets the tool.
 * ``CUTCOM/LEFT|RIGHT`` is accepted with a warning (``cutter_compensation``): CL data are the
   tool-centre path and are read as written, without the controller's offset.
-* Known records without effect on the moves (``COOLNT``, ``CUTCOM/OFF``, ``PPRINT``, ``INSERT``,
-  ``REMARK``, ``PARTNO`` → ``meta["program"]``, ``TRNTYP`` → ``meta["trntyp"]``, ``END``, ``PAINT``,
-  ``TOOL PATH``, ``END-OF-PATH``, ``MACHIN``, ``CLRSRF``, ``OPSTOP``, ``STOP``, ``DELAY``) are read
-  silently; ``meta["record_counts"]`` counts every major word. ``FINI`` ends the program; records
-  after it are counted in ``skipped["after_fini"]`` with one warning.
-* Unknown records are skipped with a warning (``unknown_record``) **also in strict mode**;
-  malformed known records (wrong field count, bad or non-finite numbers, unknown unit words) raise
-  :class:`ToolpathError` in strict mode and are skipped, warned about and counted in
-  ``Toolpath.skipped`` (by category) in lenient mode.
+* ``GODLTA/d`` moves d along the tool axis in force (+z when none), ``GODLTA/dx,dy,dz`` by the
+  delta (turned, not moved, by the frame with ``apply_frames``); ``RAPID`` applies to it.
+* **Splines** (NX CLSF): ``NURBS/``, then ``KNOT/k1,…`` records, then ``CNTRL/x,y,z`` records
+  are a clamped **cubic** B-spline whose **first control point is the tool position** (not
+  written); the knots are the ends of its spans, the first starting at 0 (knot vector
+  ``0,0,0,0,k1…kn,kn,kn,kn``), so n knots come with n + 2 CNTRL records. Evidence, from
+  ``samples/nurbs.clsf`` of HumMan/CLSFProcessor (NX output, every spline bare ``NURBS/`` with
+  CNTRL = KNOT + 2, knots ending at 1): read this way, splines that follow each other with no
+  GOTO between join without a gap, tangents 2–6° apart (reading the CNTRLs alone leaves 0.3–0.8
+  mm jumps there, up to 3 mm after a GOTO); three checked splines come out parametrised by arc length
+  as a fit would be (|C'| constant within 0.3 % and equal to the lengths 21.72, 78.89, 23.53 mm);
+  the symmetric lead-out (knots 1/26, 1/2, 25/26, 1) gets equal end legs. A spline ends at its
+  last CNTRL. Also accepted: the start point written as the first CNTRL (n + 3 records), when it
+  is within :data:`SPLINE_START_TOL` of the tool; ``CNTRL/x,y,z,w``, the rational form (weight
+  w > 0, x,y,z the point itself, the tool position weight 1) — the samples carry no weights, so
+  this layout is an assumption. The curve becomes LINEAR moves at the feed in force (``RAPID``
+  applies), none farther than ``chord_tol`` from it (``_spline.flatten``), ending exactly at the
+  last control point, with ``Move.extra = {"spline": n}`` (n counts NURBS records from 0) and the
+  NURBS record as source; ``meta["splines"]`` lists them. A decreasing knot, one repeated more
+  than 3 times, a first knot <= 0, a last knot not above the one before, other counts, weights
+  <= 0 or an unknown start position are errors (lenient: the spline is dropped, the tool put at
+  its last control point).
+* **Strict mode never skips geometry.** A record that moves the tool or changes how later
+  records are read is read or refused by name, saying what it does (``GOHOME``, ``GOCLER``,
+  ``RETRCT``, ``ORIGIN``, ``TRANS``, ``ROTABL``, ``ROTATE``, ``PIVOTZ``, ``VTLAXS``, ``MODE``,
+  ``PREFUN``, ``COPY``, ``INDEX``, ``THREAD``, non-drilling ``CYCLE`` types, APT source such as
+  ``PSIS``, ``AUTOPS``, ``INDIRV``, ``GOFWD``, ``LOOPST`` or assignments: ``_words.REFUSED``), and
+  so is an **unknown** record, which may be any of these. Only path-neutral words are passed over
+  (``COOLNT``, ``PPRINT``, ``INSERT``, ``REMARK``, ``PAINT``, ``TOOL PATH``, ``END-OF-PATH``,
+  ``MACHIN``, ``CLRSRF``, ``OPSTOP``, ``STOP``, ``DELAY``, ``DWELL``, ``SEQNO``, ``OPNAME``,
+  ``AUXFUN``, the CAM tolerances ``INTOL``/``OUTTOL``/``TOLER``/``LINTOL``, …:
+  ``_words.PATH_NEUTRAL``), counted by name in ``meta["ignored_records"]``. Lenient mode skips
+  refused and unknown records, counts them in ``Toolpath.skipped`` by record name and warns once
+  per name with what it may change; after a skipped motion the next move's start is unknown.
+  Malformed known records raise in strict mode and are skipped, warned about and counted by
+  category in lenient mode. ``FINI`` ends the program; later records are counted in
+  ``skipped["after_fini"]`` with one warning. Messages naming an option speak the interface in
+  use (``robot_io.options.fix``).
+* An NX **information listing** header (``Information listing created by : …``, ``Date : …``,
+  ``Current work part : …``, ``Node name : …``, up to a rule of ``=``; blank lines) at the top of
+  the file, and only there, is passed over and kept in ``meta["listing_header"]``.
 
 ``Toolpath.meta``: ``program``, ``units_declared`` [(line, units)], ``frames`` [{record, line,
 rotation (3×3, rows), origin_m}], ``trntyp``, ``cutters``, ``selected_tools``, ``cycles``,
-``multax``, ``apply_frames``, ``record_counts`` (every major word), ``records``,
+``multax``, ``apply_frames``, ``splines``, ``listing_header``, ``record_counts`` (every major
+word), ``ignored_records`` (the path-neutral ones), ``records``,
 ``warning_counts`` (all warnings by category, also those beyond
 :data:`MAX_WARNINGS_PER_CATEGORY`) and, from :func:`read_apt`, ``encoding``.
 
@@ -116,14 +151,17 @@ from models.errors import InputError
 from robot_io.apt._interp import run_program
 from robot_io.apt._records import (
     ARC_MIN_RADIUS,
+    CHORD_TOL,
     CYCLE_POSITION_TOL,
     FRAME_ORTHONORMAL_TOL,
     INCH,
     MAX_ARC_TURNS,
     MAX_NUMBER_CHARS,
     MAX_RECORD_FIELDS,
+    MAX_SPLINE_MOVES,
     MAX_WARNINGS_PER_CATEGORY,
     MM,
+    SPLINE_START_TOL,
     TOOL_AXIS_NORM_TOL,
 )
 from robot_io.toolpath import (
@@ -138,14 +176,17 @@ __all__ = [
     "ARC_MIN_RADIUS",
     "AptOptions",
     "AptReader",
+    "CHORD_TOL",
     "CYCLE_POSITION_TOL",
     "FRAME_ORTHONORMAL_TOL",
     "INCH",
     "MAX_ARC_TURNS",
     "MAX_NUMBER_CHARS",
     "MAX_RECORD_FIELDS",
+    "MAX_SPLINE_MOVES",
     "MAX_WARNINGS_PER_CATEGORY",
     "MM",
+    "SPLINE_START_TOL",
     "TOOL_AXIS_NORM_TOL",
     "read_apt",
     "read_apt_text",
@@ -163,12 +204,15 @@ class AptOptions:
             data written in local setup coordinates); default keeps points as written.
         arc_radius_tol: allowed start/end (and given-radius) mismatch of a CIRCLE [m].
         arc_radius_rtol: the same relative to the radius [-]; the larger of the two applies.
+        chord_tol: largest distance of a spline's linear moves from the curve [m] (the planner
+            passes the job's ``[path] chord_tol_mm``).
     """
 
     default_units: str = "mm"
     apply_frames: bool = False
     arc_radius_tol: float = ARC_RADIUS_TOL
     arc_radius_rtol: float = ARC_RADIUS_RTOL
+    chord_tol: float = CHORD_TOL
 
     @classmethod
     def from_kwargs(cls, **options: Any) -> AptOptions:
@@ -182,6 +226,9 @@ class AptOptions:
             v = options.get(k, 0.0)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise InputError(k, "must be a finite number >= 0")
+        v = options.get("chord_tol", CHORD_TOL)
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise InputError("chord_tol", "must be a finite number > 0 (metres)")
         return cls(**options)
 
 
@@ -193,10 +240,10 @@ def read_apt_text(text: str, file: str = "<string>", strict: bool = True,
     Args:
         text: the CL data.
         file: name used in messages and ``SourceRef``.
-        strict: raise :class:`ToolpathError` on the first malformed known record (default);
-            ``False`` warns, skips it and counts it in ``Toolpath.skipped``.
+        strict: raise :class:`ToolpathError` on the first malformed, refused or unknown record
+            (default); ``False`` warns, skips it and counts it in ``Toolpath.skipped``.
         **options: fields of :class:`AptOptions` (``default_units``, ``apply_frames``,
-            ``arc_radius_tol`` [m], ``arc_radius_rtol``).
+            ``arc_radius_tol`` [m], ``arc_radius_rtol``, ``chord_tol`` [m]).
     """
     opts = AptOptions.from_kwargs(**options)
     return run_program(text, file, strict, opts)
