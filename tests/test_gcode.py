@@ -181,7 +181,15 @@ MALFORMED = [
     ("unclosed_comment", PRE + "G1 X1 (oops", r"3:7: comment '\(' is not closed",
      "unclosed_comment"),
     ("duplicate_word", PRE + "G1 X1 X2", r"3:7: second X word", "duplicate_word"),
-    ("parameter", PRE + "G1 X#1", r"3:4: parameters and expressions", "malformed_word"),
+    ("unset_named_parameter", PRE + "G1 X#<depth>", r"3:5: #<depth> is read before it is set",
+     "unset_parameter"),
+    ("bad_expression", PRE + "G1 X[1 + ]", r"3:10: expected a number", "bad_expression"),
+    ("system_parameter", PRE + "G1 X#5221", r"3:5: #5221 \(G54–G59.3 work offset\) is machine "
+     "state", "system_parameter"),
+    ("expression_outside_word", PRE + "G1 [1 + 2]", r"3:4: an expression '\[…\]' must be the "
+     "value of a word", "malformed_word"),
+    ("nested_comment", PRE + "G1 X1 (T1 (6MM) FLAT)", r"3:7: comment at column 7 holds a '\('",
+     "nested_comment"),
     ("out_of_range", PRE + "G1 X" + "9" * 15, r"3:4: X9+ is out of range", "malformed_word"),
     ("exponent", PRE + "G1 X1E5", r"3:6: word E is not read.*exponents", "unknown_word"),
     ("no_motion_mode", "G21 F100\nX1 Y1 Z1", r"2:1: axis words but no motion mode",
@@ -193,7 +201,13 @@ MALFORMED = [
     ("absolute_centre", PRE + "G90.1 G2 X10 Y0 I5", r"3:10: G90.1 \(absolute arc centre\) needs "
      r"both I and J", "bad_arc"),
     ("garbage", PRE + "G1 X1 §", r"3:7: unexpected character '§'", "malformed_word"),
-    ("o_word_sub", PRE + "o100 sub", r"3:6: O-word subroutines", "malformed_word"),
+    ("o_word_sub", PRE + "o100 sub", r"3:1: o100 sub: no o100 endsub closes the subroutine",
+     "o_word"),
+    ("o_word_call", PRE + "o100 call", r"3:1: o100 call: no o100 sub in this file", "o_word"),
+    ("o_word_later_number", PRE + "O2000", r"3:1: O2000: a bare O-number after the program "
+     "start begins a Fanuc-style subprogram", "o_word"),
+    ("fanuc_m98", PRE + "M98 P2000", r"3:1: M98: Fanuc subprogram calls are not supported",
+     "o_word"),
     ("bad_feed", PRE + "G1 X1 F-5", r"3:7: F must be positive", "bad_feed"),
 ]
 
@@ -539,7 +553,7 @@ def test_reader_object_options_and_file_errors(tmp_path: Path) -> None:
         read_gcode(path, speed=2)
     with pytest.raises(InputError, match="rotary"):
         read_gcode(path, rotary="xyz-spindle")
-    with pytest.raises(ToolpathError, match="cannot read the file"):
+    with pytest.raises(ToolpathError, match="cannot read the file|not found"):
         read_gcode(tmp_path / "missing.nc")
 
 

@@ -31,7 +31,7 @@ def arc(run: _Run, code: int, col: int, words: dict, pos: list, rot: dict,
         run.problem(wn[1], "arc_normal_word", f"{lnormal}{wn[0]:g} on a "
                     f"{W.code_name('G', st.plane)} arc: the offset along the plane normal "
                     f"must be 0 (a helix gives its travel as the axis word, e.g. Z in G17); "
-                    f"{W.FIX_HINT}", skip="arc_normal_word")
+                    f"{W.fix_hint()}", skip="arc_normal_word")
     scale = st.scale
     tol_a, tol_r = run.opts.arc_radius_tol, run.opts.arc_radius_rtol
     if "R" in words:

@@ -62,7 +62,7 @@ def canned_cycle(run: _Run, code: int, col: int, words: dict) -> None:
     elif z0 is None:
         reason = f"{name} from an unknown Z: move Z absolutely before the cycle"
     if reason is not None:
-        run.problem(col, "canned_cycle", f"{reason}, or {W.FIX_HINT}", skip="canned_cycle")
+        run.problem(col, "canned_cycle", f"{reason}, or {W.fix_hint()}", skip="canned_cycle")
         return
     scale = st.scale
     r_abs, z_abs = st.cycle_r, st.cycle_z
@@ -76,7 +76,7 @@ def canned_cycle(run: _Run, code: int, col: int, words: dict) -> None:
         reps = int(lv) if lv == int(lv) and 1 <= lv <= 10000 else 0
     if r_abs is None or z_abs is None or reps == 0:
         run.problem(col, "canned_cycle", f"{name} needs R (retract plane), Z (bottom) and "
-                    f"an integer L in 1…10000 if any; add them, or {W.FIX_HINT}",
+                    f"an integer L in 1…10000 if any; add them, or {W.fix_hint()}",
                     skip="canned_cycle")
         return
     st.cycle_r, st.cycle_z = r_abs, z_abs

@@ -6,11 +6,16 @@ Conventions are documented in :mod:`robot_io.gcode`. The work is shared out:
   N/G0/G1/X/Y/Z/F words — and executes long runs of them in bulk while the modal state allows it
   (absolute, G94, no rotary kinematics, position known): that is most of a 3-axis CAM program;
 * every other line goes through this module one at a time (:meth:`_Run.read_line`): one compiled regex
-  per line (:data:`robot_io.gcode._words.TOKEN`), plain floats, tuples and dicts;
+  per line (:data:`robot_io.gcode._words.TOKEN`), plain floats, tuples and dicts; lines with
+  comments, problems, parameters, expressions or O-words are tokenised by
+  :mod:`robot_io.gcode._line` (parameters in :mod:`robot_io.gcode._params`, expressions in
+  :mod:`robot_io.gcode._expr`, O-words in :mod:`robot_io.gcode._oword`);
 * arcs are in :mod:`robot_io.gcode._arcs`, homing/G53 and canned cycles in
   :mod:`robot_io.gcode._cycles`, the modal state in :mod:`robot_io.gcode._state`;
 * moves go into the columns of :mod:`robot_io.gcode._moves`; ``Move`` objects are only made when
-  ``Toolpath.moves`` is read.
+  ``Toolpath.moves`` is read;
+* O-word flow control (loops, calls) raises :class:`robot_io.gcode._oword.Jump`, and
+  :meth:`_Run.run` goes on reading at its target line (:meth:`_Run.read_from`).
 
 Reading with ``plain=False`` runs every line through the interpreter; ``test_gcode`` checks that
 both ways give the same toolpath, warnings and errors.
@@ -18,15 +23,19 @@ both ways give the same toolpath, warnings and errors.
 
 from __future__ import annotations
 
+import bisect
 from collections import Counter
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from robot_io.gcode import _oword
 from robot_io.gcode import _words as W
 from robot_io.gcode._arcs import arc
 from robot_io.gcode._cycles import canned_cycle, group0_move
+from robot_io.gcode._line import percent_or_slash, slow_tokens
 from robot_io.gcode._moves import START_GIVEN, START_PREVIOUS, START_UNKNOWN, MoveStore
+from robot_io.gcode._params import Parameters
 from robot_io.gcode._plain import (
     MIN_RUN,
     PlainLines,
@@ -35,6 +44,7 @@ from robot_io.gcode._plain import (
     scan_plain_lines,
 )
 from robot_io.gcode._state import DEG, PLANES, ModalState
+from robot_io.options import fix
 from robot_io.rotary import TrunnionKinematics, make_rotary_kinematics
 from robot_io.toolpath import SourceRef, Toolpath, ToolpathError, ToolpathWarning
 
@@ -49,7 +59,6 @@ _MODAL = frozenset({170, 180, 190, 200, 210, 900, 910, 901, 911, 930, 940}) | (
 _AXES = frozenset("XYZABC")
 _ARC = frozenset("IJKR")
 _FIRST_COL = frozenset("XYZABCIJKR")
-_FIX = W.FIX_HINT
 
 
 def run_program(text: str, file: str, strict: bool, opts: GcodeOptions,
@@ -99,6 +108,10 @@ class _Run:
         self.keys: dict[str, int | None] = {}   # G/M number text → code key
         self.first_line = 0                      # first line that is not blank
         self.raw = ""                            # the line being tokenised, as written
+        self.params = Parameters()               # LinuxCNC #1 … and #<name> parameters
+        self.started = False                     # a block has been read (O number or not)
+        self.lines: list[str] = []               # the program, for O-word flow control
+        self.flow: _oword.Flow | None = None     # its O-lines and state, from the first one
 
     # ------------------------------------------------------------------ problems and warnings
     def warn(self, col: int, category: str, message: str, line: int | None = None) -> None:
@@ -121,27 +134,39 @@ class _Run:
 
     # ------------------------------------------------------------------ the line loop
     def run(self, text: str, plain: bool = True) -> Toolpath:
-        lines = text.split("\n")
+        lines = self.lines = text.split("\n")
         nlines = len(lines)
-        # the bulk path needs runs of MIN_RUN lines and no rotary kinematics (see _gcode_plain)
+        # the bulk path needs runs of MIN_RUN lines and no rotary kinematics (see _plain)
         bulk = plain and nlines >= MIN_RUN and self.kin is None
         scan = scan_plain_lines(text, nlines, MIN_RUN) if bulk else None
-        done = 0 if scan is None else self.read_runs(scan, lines)
-        for i in range(done, nlines):
-            self.read_line(i + 1, lines[i])
+        spans = [] if scan is None else plain_spans(scan, MIN_RUN)
+        start = 0
+        while True:   # O-word flow control jumps: go on at the target line
+            try:
+                self.read_from(start, lines, scan, spans)
+                break
+            except _oword.Jump as jump:
+                start = jump.target
+        if self.after_end and self.flow is not None:   # subroutines written after M2/M30
+            self.after_end -= self.flow.definitions_after(self.end_line - 1, lines)
         if self.after_end:
             self.skipped["after_program_end"] += self.after_end
             self.warn(0, "after_program_end", f"{self.after_end} line(s) after M2/M30 ignored "
                       "(the machine stops at the program end)", line=self.end_line)
         return self.finish(nlines)
 
-    def read_runs(self, scan: PlainLines, lines: list[str]) -> int:
-        """Read up to the end of the last run of plain lines: the runs in bulk, the lines
-        between them (and any line a run stops at) one by one; returns the next line index."""
-        done = 0
-        for a, b in plain_spans(scan, MIN_RUN):
+    def read_from(self, start: int, lines: list[str], scan: PlainLines | None,
+                  spans: list[tuple[int, int]]) -> None:
+        """Read from line index ``start`` to the end: runs of plain lines in bulk, the lines
+        between them (and any line a run stops at) one by one."""
+        k = bisect.bisect_left(spans, (start, 0))   # the first run at or after start …
+        if k and spans[k - 1][1] > start:            # … or the one start is in
+            k -= 1
+        done = start
+        for a, b in spans[k:]:
             for i in range(done, a):
                 self.read_line(i + 1, lines[i])
+            a = max(a, done)
             while a < b:
                 c = execute_plain(self, scan, a, b) if b - a >= MIN_RUN else a
                 if c < b:   # the bulk path stopped: this line needs the interpreter
@@ -149,7 +174,8 @@ class _Run:
                     c += 1
                 a = c
             done = b
-        return done
+        for i in range(done, len(lines)):
+            self.read_line(i + 1, lines[i])
 
     def read_line(self, number: int, raw: str) -> None:
         """Read and execute line ``number`` (1-based) as written."""
@@ -170,7 +196,7 @@ class _Run:
         if first == " " or first == "\t":
             first = u.lstrip()[0]
         if first == "%" or first == "/":
-            u = self.percent_or_slash(u, first)
+            u = percent_or_slash(self, u, first)
             if u is None:
                 return
         # Words only (the common case): every letter on the line starts a word, so a word's
@@ -205,75 +231,9 @@ class _Run:
                 self.block(words, codes, col0)
             return
         self.raw = line
-        parsed = self.slow_tokens(u)
+        parsed = slow_tokens(self, u)
         if parsed is not None and (parsed[0] or parsed[1]):
             self.block(*parsed)
-
-    def percent_or_slash(self, u: str, first: str) -> str | None:
-        """A ``%`` line (``None``: nothing to read) or a ``/`` block-delete line (read it)."""
-        if first == "%":
-            if u.strip() != "%":
-                self.skipped["percent_line"] += 1
-                self.warn(1, "percent_line", "text after '%' ignored (a '%' line only delimits "
-                          "the program)")
-            return None
-        i = u.index("/")
-        self.meta["block_delete_lines"] += 1
-        self.warn(i + 1, "block_delete", "block delete '/' ignored: the block is read as "
-                  "executed (block delete switch off)")
-        return u[:i] + " " + u[i + 1:]
-
-    def slow_tokens(self, u: str) -> tuple[dict, list, int] | None:
-        """Tokenise a line with comments or problems, with exact columns; ``None`` if the block
-        is to be skipped (lenient) after a malformed word."""
-        keys = self.keys
-        words: dict[str, tuple[float, int]] = {}
-        codes: list[tuple[str, int | None, int, str]] = []
-        col0 = 0
-        for m in W.TOKEN.finditer(u):
-            letter, num, com, eol, opn, _garbage = m.groups()
-            if letter is not None:
-                col = m.start(1) + 1
-                if letter == "G" or letter == "M":
-                    key = keys.get(num, -1)
-                    if key == -1:
-                        key = keys[num] = W.code_key(num) if len(num) < 12 else None
-                    codes.append((letter, key, col, num))
-                    continue
-                if letter == "N":
-                    continue
-                value = float(num)
-                if len(num) > 10 and abs(value) > W.MAX_WORD_VALUE:
-                    self.problem(col, "malformed_word", f"{letter}{num[:20]} is out of range "
-                                 f"(|value| > {W.MAX_WORD_VALUE:g}); fix the number",
-                                 skip="malformed_block")
-                    return None
-                if letter in words:
-                    self.problem(col, "duplicate_word", f"second {letter} word in one block "
-                                 f"(first at column {words[letter][1]}); keep one of them",
-                                 skip="duplicate_word")
-                elif not col0 and letter in _FIRST_COL:
-                    col0 = col
-                words[letter] = (value, col)
-            elif com is not None or eol is not None:
-                i = 3 if com is not None else 4
-                self.comment(self.raw[m.start(i):m.end(i)])
-            elif opn is not None:
-                self.problem(m.start(5) + 1, "unclosed_comment", "comment '(' is not closed on "
-                             "this line; add ')'", skip="unclosed_comment")
-            else:
-                col = m.start(6) + 1
-                self.problem(col, "malformed_word", W.garbage_reason(u, col),
-                             skip="malformed_block")
-                return None
-        return words, codes, col0
-
-    def comment(self, text: str) -> None:
-        """Remember a TCP announcement, and a program name on the first program line."""
-        if "TCP:" in text and self.tcp_hint is None:
-            self.tcp_hint = self.line
-        if self.line == self.first_line and text[0] == "(" and self.meta["program"] is None:
-            self.meta["program"] = text[1:-1].strip()
 
     # ------------------------------------------------------------------ one block
     def block(self, words: dict, codes: list | None, col0: int) -> None:
@@ -304,16 +264,19 @@ class _Run:
             elif key in (40, 280, 300, 530):
                 group0 = (key, col)
             elif not self.unknown_g(key, col, num, words):
+                self.started = True
                 return
         end_program = self.m_codes(mcodes) if mcodes else False
         if "O" in words:
-            self.meta["program"] = f"O{words.pop('O')[0]:g}"
+            _oword.program_number(self, *words.pop("O"), not self.started)
+        self.started = True
         if "E" in words or "U" in words or "V" in words or "W" in words:
             for letter in "EUVW":
                 if letter in words:
                     hint = " — exponents like X1E5 are no G-code" if letter == "E" else ""
                     self.problem(words.pop(letter)[1], "unknown_word", f"word {letter} is not "
-                                 f"read by cctmill (extra axis or vendor word{hint}); {_FIX}",
+                                 f"read by cctmill (extra axis or vendor word{hint}); "
+                                 f"{W.fix_hint()}",
                                  skip="unknown_word")
         # RS274NGC order of execution: feed mode, F, S, T, M6, spindle, coolant, dwell, plane,
         # units, compensation, work offset, path control, distance mode, retract mode, G28/G53,
@@ -375,7 +338,7 @@ class _Run:
         what = "unsupported" if key in W.UNSUPPORTED_AXIS_G else "unknown"
         self.problem(col, "unknown_g", f"{what} G code G{num}"
                      + ("; the whole block was skipped (its axis words may belong to it)"
-                        if takes_axes and not self.strict else "") + f"; {_FIX}",
+                        if takes_axes and not self.strict else "") + f"; {W.fix_hint()}",
                      skip="unknown_g_block" if takes_axes else "unknown_g")
         return not takes_axes
 
@@ -404,8 +367,10 @@ class _Run:
                 self.skipped["user_mcode"] += 1
                 self.warn(col, "user_mcode", f"user M code M{num} skipped (LinuxCNC M100–M199 "
                           "runs a user program; it cannot move the axes)")
+            elif key == 980 or key == 990:
+                _oword.fanuc_subprogram(self, key, col)
             else:
-                self.problem(col, "unknown_m", f"unknown M code M{num}; {_FIX}",
+                self.problem(col, "unknown_m", f"unknown M code M{num}; {W.fix_hint()}",
                              skip="unknown_m")
         return end_program
 
@@ -462,7 +427,7 @@ class _Run:
         for letter in "IJKR":
             if letter in words:
                 self.problem(words[letter][1], "unused_word", f"{letter} word without G2/G3 "
-                             f"(I/J/K tool-axis vectors on G1 are not read); {_FIX}",
+                             f"(I/J/K tool-axis vectors on G1 are not read); {W.fix_hint()}",
                              skip="unused_word")
 
     # ------------------------------------------------------------------ positions and moves
@@ -494,9 +459,11 @@ class _Run:
                     hint = "" if self.tcp_hint is None else (
                         f" (line {self.tcp_hint} announces TCP kinematics)")
                     self.problem(w[1], "rotary_ignored", f"rotary word {letter} but no rotary "
-                                 f"kinematics for it{hint}: pass rotary='xyzac-trunnion' (or "
-                                 "'xyzbc-trunnion'), or read with strict=False to keep the raw "
-                                 "angle in Move.extra", skip="rotary_word")
+                                 f"kinematics for it{hint}: choose one with "
+                                 f"{fix('rotary', 'xyzac-trunnion')} (or "
+                                 f"{fix('rotary', 'xyzbc-trunnion')}), or read with "
+                                 f"{fix('strict', False)} to keep the raw angle in Move.extra",
+                                 skip="rotary_word")
                 if absolute:
                     rot[letter] = w[0] * DEG
                 elif rot[letter] is not None:
@@ -572,16 +539,19 @@ class _Run:
             missing = [k for k in (self.kin.tilt, "C") if rot[k] is None]
         self.last_tip = None
         self.skipped["unknown_position"] += 1
+        given = (f"give the start with {fix('initial_position')}" if not self.meta["homing_blocks"]
+                 else f"give the home with {fix('home_position')}")
         self.warn(col, "unknown_position", f"move skipped: position of {'/'.join(missing)} not "
                   "known yet (program start, G28/G30 or G53); program every axis absolutely "
-                  "first, or pass initial_position=")
+                  f"first, or {given}")
 
     # ------------------------------------------------------------------ the result
     def finish(self, nlines: int) -> Toolpath:
         if self.units is None:
+            other = "inch" if self.opts.default_units == "mm" else "mm"
             self.warn(0, "no_units", f"no G20/G21 in the program: read as "
-                      f"{self.opts.default_units} (pass default_units='inch' if the machine "
-                      "starts in inch)", line=self.default_units_line or 1)
+                      f"{self.opts.default_units} (use {fix('default_units', other)} if the "
+                      f"machine starts in {other})", line=self.default_units_line or 1)
         elif self.default_units_line is not None:
             self.warn(0, "moves_before_units", f"moves before the first G20/G21 were read in "
                       f"{self.opts.default_units}", line=self.default_units_line)

@@ -14,8 +14,9 @@ A line is plain when, upper-cased, it consists of words ``N``, ``G``, ``X``, ``Y
 point, at least one digit, at most :data:`MAX_NUMBER_CHARS` characters) separated by spaces or
 tabs, with a trailing CR at most, where no letter but N occurs twice, every G is ``G0`` or ``G1``
 written with digits only, every value is at most ``MAX_WORD_VALUE`` in size and every F is
-positive. Anything else — comments, other words, anything malformed — makes the line not
-plain, and the interpreter reads it as before. Being plain is only a promise about the text:
+positive. Anything else — comments, other words (``O`` among them), parameters ``#`` and
+expressions ``[…]`` (their bytes are not in the scan's classes), anything malformed — makes the
+line not plain, and the interpreter reads it as before. Being plain is only a promise about the text:
 :func:`execute_plain` also requires a modal state it can reproduce exactly (absolute G90, G94,
 no rotary kinematics or rotary words so far, G0/G1 in force, the position known) and stops at
 the first feed move without a feed rate, leaving that line to the interpreter and its error
@@ -291,4 +292,5 @@ def execute_plain(run: _Run, scan: PlainLines, a: int, b: int) -> int:
         if not run.first_line:
             run.first_line = a + int(nb[0]) + 1
         run.line = a + int(nb[-1]) + 1
+        run.started = True
     return b

@@ -8,15 +8,17 @@ from __future__ import annotations
 
 import re
 
+from robot_io.options import fix
+
 __all__ = [
     "ARC_MIN_RADIUS",
     "ARC_WORDS",
     "ASCII_UPPER",
     "AXIS_WORDS",
     "CANNED_CYCLES",
+    "CODE_TOL",
     "CUTTER_COMP_G",
     "EXPANDED_CYCLES",
-    "FIX_HINT",
     "HARMLESS_G",
     "HARMLESS_M",
     "IGNORED_WORDS",
@@ -34,12 +36,16 @@ __all__ = [
     "USER_M_RANGE",
     "WORK_OFFSETS_G",
     "code_key",
+    "code_key_of",
     "code_name",
-    "garbage_reason",
+    "fix_hint",
     "upper",
 ]
 
 MM = 1e-3       #: one millimetre [m]
+#: A G/M number within this [-] of a tenth is that code (float noise such as G[0.1*30] is G3;
+#: G1.23 is no code).
+CODE_TOL = 1e-6
 INCH = 0.0254   #: one inch [m]
 
 #: An arc radius below this [m] has no plane basis worth the name (and is surely a typo).
@@ -49,8 +55,6 @@ MAX_ARC_TURNS = 1000
 #: Largest magnitude of any word's number [program units]; beyond it the number is garbage
 #: (a km-sized move in mm, or a 1e300 that would overflow squares).
 MAX_WORD_VALUE = 1e9
-#: How to get past a problem, appended to strict-mode messages.
-FIX_HINT = "read with strict=False to skip it, or remove it"
 #: Warnings kept per category; further ones are only counted (``meta["warning_counts"]``).
 MAX_WARNINGS_PER_CATEGORY = 50
 
@@ -82,34 +86,22 @@ def upper(line: str) -> str:
 
 def code_key(number: str) -> int | None:
     """``"01"`` → 10, ``"90.1"`` → 901; ``None`` when the number is not a code (``G1.23``)."""
-    v = float(number) * 10.0
+    return code_key_of(float(number))
+
+
+def code_key_of(value: float) -> int | None:
+    """:func:`code_key` of a number's value (``G[#1]``: the value of an expression)."""
+    v = value * 10.0
     k = round(v)
-    if abs(v - k) > 1e-6 or k < 0:
+    if abs(v - k) > CODE_TOL or k < 0:
         return None
     return int(k)
 
 
-def garbage_reason(u: str, col: int) -> str:
-    """Why the text at ``col`` (1-based) is not a word, and what to do."""
-    ch = u[col - 1]
-    snippet = u[col - 1:col + 11].rstrip()
-    if u.lstrip()[:1] == "O" and "A" <= ch <= "Z":
-        return (f"O-word subroutines and control flow ({snippet!r}) are not supported; let the "
-                "CAM post write the moves out")
-    if "A" <= ch <= "Z":
-        rest = u[col:col + 40].lstrip(" \t")
-        if rest[:1] in ("#", "["):
-            return (f"parameters and expressions ({snippet!r}) are not supported; let the CAM "
-                    "post write plain numbers")
-        if rest.lstrip("+-.").lstrip(" \t")[:1] in ("", ";", "("):
-            return (f"word {snippet!r} without a number (truncated word?); give it a number or "
-                    "remove it")
-        return (f"malformed number in {snippet!r}: one plain decimal number per word, e.g. "
-                f"{ch}1.25 (no exponents, NaN/inf or repeated points)")
-    if ch in "#[":
-        return (f"parameters and expressions ({snippet!r}) are not supported; let the CAM post "
-                "write plain numbers")
-    return f"unexpected character {ch!r} in {snippet!r}; remove it"
+def fix_hint() -> str:
+    """How to get past a problem, appended to strict-mode messages, in the words of the
+    interface in use (built when the message is, see :func:`robot_io.options.fix`)."""
+    return f"read with {fix('strict', False)} to skip it, or remove it"
 
 
 def code_name(letter: str, key: int) -> str:

@@ -2,9 +2,11 @@
 
 The reader runs the program the way the machine would: modal motion (bare ``X.. Y..`` lines
 continue the last G0/G1/G2/G3), packed (``G1X1.5Y2F300``) and spaced (``G0  X  16.339``) words,
-``( … )`` and ``;`` comments, ``%`` lines, ``/`` block delete (executed, with a warning), N and O
-words, G90/G91, G90.1/G91.1, G17/G18/G19 arcs in I/J/K or R form (helical, full circles, ``P``
-turns), G20/G21, G93/G94, F/S/T/M6/M3/M4/M5, G28 homing, G54–G59, and G81/G82 canned cycles.
+``( … )`` and ``;`` comments, ``%`` lines, ``/`` block delete (executed, with a warning), N words
+and the program number (``O1001`` or ``:1001``), G90/G91, G90.1/G91.1, G17/G18/G19 arcs in I/J/K
+or R form (helical, full circles, ``P`` turns), G20/G21, G93/G94, F/S/T/M6/M3/M4/M5, G28 homing,
+G54–G59, G81/G82 canned cycles, and LinuxCNC parameters and expressions (``#1 = 10``,
+``#<depth> = -2``, ``G1 X[#1*2] Z#<depth>``).
 
 Conventions (read this before trusting a number)
 ------------------------------------------------
@@ -28,7 +30,8 @@ Conventions (read this before trusting a number)
   from an unknown position is skipped the same way.
 * ``Move.source.column`` is the column of the block's first axis or arc word (X Y Z A B C I J K R),
   or of its motion code when it has none.
-* ``Toolpath.meta``: ``program`` (O word, or the comment on the first line), ``work_offsets``,
+* ``Toolpath.meta``: ``program`` (O word, or the comment on the first line), ``program_number``
+  (the O number, when there is one), ``work_offsets``,
   ``rotary_kinematics``, ``tcp_switches`` [(line, "tcp"/"identity"/"user")], ``homing_blocks``,
   ``unknown_start_moves``, ``block_delete_lines``, ``dwell_s``, ``warning_counts`` (all warnings
   by category, also those beyond ``MAX_WARNINGS_PER_CATEGORY``), ``lines`` and ``encoding``.
@@ -37,6 +40,24 @@ Conventions (read this before trusting a number)
   G73 and G83–G89 are *not* expanded: a counted warning ``canned_cycle_not_expanded`` (in strict
   mode too), and the position afterwards is where the cycle would have left the tool.
 * Cutter compensation G41/G42 is accepted with a warning: the path is read uncompensated.
+* Parameters and expressions follow LinuxCNC (:mod:`robot_io.gcode._params`,
+  :mod:`robot_io.gcode._expr`): ``#1``–``#5000`` are 0 until set (a counted warning
+  ``unset_numbered_parameter``), a named one read before it is set is an error; the settings
+  on a line take effect after all its values are read; trig in degrees; ``#5001`` and up are
+  machine state, refused except the current position ``#5420``–``#5425`` (and the predefined
+  names such as ``#<_x>``, ``#<_metric>``). A word's value may be an expression everywhere
+  (``G[#1]``, ``F[#<feed>]``). Lines with ``#``, ``[`` or ``O`` never take the bulk path.
+* ``O1001`` before the first block is the program number (``meta["program"] = "O1001"``,
+  ``meta["program_number"] = 1001``). LinuxCNC O-word flow control is run as LinuxCNC runs it
+  (:mod:`robot_io.gcode._oword`): ``sub``/``endsub``/``call``/``return`` of subroutines in the
+  same file (arguments in ``#1``…, local parameters, ``#<_value>``), ``if``/``elseif``/``else``/
+  ``endif``, ``while``/``do``/``repeat`` loops with ``break``/``continue``, at most
+  ``MAX_LOOP_ITERATIONS`` rounds per loop. A call of a subroutine not in the file, a loop over
+  its limit, a later bare O-number (a Fanuc subprogram) and ``M98``/``M99`` are refused
+  (strict) or skipped with a counted warning ``o_word`` that says what the skipping may change.
+* Comments do not nest: a ``(`` inside a comment with a later ``)`` (``(T1 (6MM) FLAT)``) is
+  refused (strict) or read as one comment with a warning ``nested_comment`` (lenient). Messages
+  quote the offending word, never the text of a comment.
 * Unknown G/M codes and words: strict → :class:`ToolpathError` with ``file:line:col`` and a fix;
   lenient → counted warning and the code (or, when the block has axis words a skipped code might
   have consumed, the whole block) is skipped. LinuxCNC user M codes M100–M199 are counted
@@ -87,6 +108,7 @@ from typing import Any
 
 from models.errors import InputError
 from robot_io.gcode._interp import run_program
+from robot_io.gcode._oword import MAX_CALL_DEPTH, MAX_FLOW_STEPS, MAX_LOOP_ITERATIONS
 from robot_io.gcode._words import (
     ARC_MIN_RADIUS,
     INCH,
@@ -95,6 +117,7 @@ from robot_io.gcode._words import (
     MAX_WORD_VALUE,
     MM,
 )
+from robot_io.options import option_name
 from robot_io.rotary import ROTARY_KINEMATICS
 from robot_io.toolpath import (
     ARC_RADIUS_RTOL,
@@ -110,6 +133,9 @@ __all__ = [
     "GcodeReader",
     "INCH",
     "MAX_ARC_TURNS",
+    "MAX_CALL_DEPTH",
+    "MAX_FLOW_STEPS",
+    "MAX_LOOP_ITERATIONS",
     "MAX_WARNINGS_PER_CATEGORY",
     "MAX_WORD_VALUE",
     "MM",
@@ -150,24 +176,25 @@ class GcodeOptions:
         check_option_names(cls, options, "G-code")
         rot = "none" if rotary is None else str(rotary)
         if rot != "none" and rot not in ROTARY_KINEMATICS:
-            raise InputError("rotary", f"unknown rotary kinematics {rot!r}; choose 'none' or "
-                             f"one of {sorted(ROTARY_KINEMATICS)}")
+            raise InputError(option_name("rotary"), f"unknown rotary kinematics {rot!r}; "
+                             f"choose 'none' or one of {sorted(ROTARY_KINEMATICS)}")
         if options.get("default_units", "mm") not in ("mm", "inch"):
-            raise InputError("default_units", "must be 'mm' or 'inch'")
+            raise InputError(option_name("default_units"), "must be 'mm' or 'inch'")
         if options.get("tcp") not in (None, True, False):
-            raise InputError("tcp", "must be None (follow M428/M429), True or False")
+            raise InputError(option_name("tcp"), "must be None (follow M428/M429), True or "
+                             "False")
         for k in ("arc_radius_tol", "arc_radius_rtol"):
             v = options.get(k, 0.0)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise InputError(k, "must be a finite number >= 0")
+                raise InputError(option_name(k), "must be a finite number >= 0")
         for k in ("pivot", "c_offset", "initial_position", "home_position"):
             if options.get(k) is not None:
                 try:
                     vals = tuple(float(v) for v in options[k])
                 except (TypeError, ValueError) as e:
-                    raise InputError(k, "expected three numbers in metres") from e
+                    raise InputError(option_name(k), "expected three numbers in metres") from e
                 if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
-                    raise InputError(k, "expected three finite numbers in metres")
+                    raise InputError(option_name(k), "expected three finite numbers in metres")
                 options[k] = vals
         return cls(rotary=rot, **options)
 
