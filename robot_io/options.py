@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import re
 from collections.abc import Iterator
 from typing import Any
 
@@ -25,6 +26,7 @@ __all__ = [
     "fix",
     "option_name",
     "speaking",
+    "without_lenient_hint",
 ]
 
 #: The interfaces a message can speak.
@@ -62,6 +64,7 @@ _CLI: dict[str, str] = {
     "initial_position": "--initial-position-mm X,Y,Z",
     "home_position": "--home-position-mm X,Y,Z",
     "chord_tol": "--chord-tol-mm {}",
+    "arc_radius_tol": "--arc-radius-tol-mm {}",
 }
 _JOB: dict[str, str] = {
     "strict": "[job] strict = false",
@@ -72,7 +75,12 @@ _JOB: dict[str, str] = {
     "initial_position": "[job] initial_position_mm = [x, y, z]",
     "home_position": "[job] home_position_mm = [x, y, z]",
     "chord_tol": "[path] chord_tol_mm = {}",
+    "arc_radius_tol": "[job] arc_radius_tol_mm = {}",
 }
+
+
+#: Options in metres, shown in mm by the CLI and job forms.
+_METRES = ("chord_tol", "arc_radius_tol")
 
 
 def current_interface() -> str:
@@ -95,7 +103,7 @@ def speaking(interface: str) -> Iterator[None]:
 def _python_form(name: str, value: Any) -> str:
     if name == "initial_position" or name == "home_position":
         return f"{name}=(x, y, z) in metres"
-    if name == "chord_tol" and value is not None:
+    if name in _METRES and value is not None:
         return f"{name}={value!r} (metres)"
     return f"{name}={value!r}"
 
@@ -116,7 +124,7 @@ def fix(name: str, value: Any = None) -> str:
     if form is None:
         return f"{_python_form(name, value)} (Python API)"
     shown = "…" if value is None else (value if isinstance(value, str) else repr(value))
-    if isinstance(value, float) and name == "chord_tol":
+    if isinstance(value, float) and name in _METRES:
         shown = f"{value * 1e3:g}"
     return form.format(shown)
 
@@ -132,3 +140,17 @@ def option_name(name: str) -> str:
     if form is None:
         return f"{name} (Python API)"
     return form.split(" = ")[0] if where == "job" else form.split(" ")[0]
+
+
+def without_lenient_hint(message: str) -> str:
+    """``message`` without its advice to read leniently: a reader's warning (made in lenient
+    mode, where the same problem raises in strict) already says what was done, so
+    "or read with --lenient to skip it" is dropped from it, in any interface's words."""
+    lenient = re.escape(fix("strict", False))
+    hint = (rf"(?:[;,] *| +)(?:or +)?read(?: +it)?(?: +leniently)?(?: +with)? *\(?{lenient}\)?"
+            r"(?: +to +[^;():]*)?")
+    out = re.sub(hint, "", message)
+    out = re.sub(r"^ *(?:or +)?remove it *(?:;|$)", "", out)
+    out = re.sub(r"[;,] *, *or remove it\b", "; or remove it", out)
+    out = re.sub(r"[;,] *(?:or +)?remove it$", "", out)
+    return out.rstrip(" ;,") if out != message else message

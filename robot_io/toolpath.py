@@ -443,9 +443,9 @@ def _arc_extremes(move: Move) -> np.ndarray:
     Coordinate k of x(θ) = c + r (cos θ u + sin θ v) + axial·θ/sweep n is f(θ) = A cos θ +
     B sin θ + Cθ + const, with A = r u_k, B = r v_k, C = axial n_k / sweep; f'(θ) =
     −R sin(θ − φ) + C = 0 (R = √(A² + B²), φ = atan2(B, A)), i.e. θ = φ + asin(C/R) or
-    θ = φ + π − asin(C/R), when |C| ≤ R. Of the repeats θ₀ + 2πm of such an angle inside the sweep (a helix of many turns
-    has many), the box needs only the first and the last, since f(θ + 2π) = f(θ) + 2πC is
-    monotone in m. At most 14 points, whatever the number of turns.
+    θ = φ + π − asin(C/R), when |C| ≤ R. Of the repeats θ₀ + 2πm of such an angle inside the
+    sweep (a helix of many turns has many), the box needs only the first and the last, since
+    f(θ + 2π) = f(θ) + 2πC is monotone in m. At most 14 points, whatever the number of turns.
     """
     geo = arc_geometry(move)
     pts = [move.start, move.end]

@@ -48,7 +48,7 @@ from robot_io.apt._motion import (
 )
 from robot_io.apt._spline import SPLINE_PARTS, Spline, close_spline, cntrl, knot, nurbs_
 from robot_io.apt._words import PATH_NEUTRAL, REFUSED, refuse, unknown
-from robot_io.options import fix
+from robot_io.options import fix, without_lenient_hint
 from robot_io.toolpath import Move, MoveKind, SourceRef, Toolpath, ToolpathError, ToolpathWarning
 
 if TYPE_CHECKING:
@@ -138,8 +138,8 @@ class Run:
             if n == rc.MAX_WARNINGS_PER_CATEGORY:
                 message += " (further warnings of this kind are only counted)"
             ln = line if line is not None else (self.rec.line if self.rec is not None else 0)
-            self.warnings.append(ToolpathWarning(SourceRef(self.file, ln, col), message,
-                                                 category))
+            self.warnings.append(ToolpathWarning(SourceRef(self.file, ln, col),
+                                                 without_lenient_hint(message), category))
 
     def bad(self, offset: int | None, reason: str, category: str = "malformed_record",
             rec: rc.Record | None = None) -> None:

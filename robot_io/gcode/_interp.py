@@ -44,7 +44,7 @@ from robot_io.gcode._plain import (
     scan_plain_lines,
 )
 from robot_io.gcode._state import DEG, PLANES, ModalState
-from robot_io.options import fix
+from robot_io.options import fix, without_lenient_hint
 from robot_io.rotary import TrunnionKinematics, make_rotary_kinematics
 from robot_io.toolpath import SourceRef, Toolpath, ToolpathError, ToolpathWarning
 
@@ -122,7 +122,7 @@ class _Run:
             if n == W.MAX_WARNINGS_PER_CATEGORY:
                 message += " (further warnings of this kind are only counted)"
             src = SourceRef(self.file, self.line if line is None else line, col)
-            self.warnings.append(ToolpathWarning(src, message, category))
+            self.warnings.append(ToolpathWarning(src, without_lenient_hint(message), category))
 
     def problem(self, col: int, category: str, reason: str, skip: str | None = None) -> None:
         """Strict: raise :class:`ToolpathError`. Lenient: warn and count ``skip``."""

@@ -40,7 +40,7 @@ from robot_io.krl._values import (
     Variables,
     expect_end,
 )
-from robot_io.options import fix
+from robot_io.options import fix, without_lenient_hint
 from robot_io.toolpath import SourceRef, Toolpath, ToolpathError, ToolpathWarning
 
 __all__ = [
@@ -149,7 +149,8 @@ class Runner:
         if n <= MAX_WARNINGS_PER_CATEGORY:
             if n == MAX_WARNINGS_PER_CATEGORY:
                 message += " (further warnings of this kind are only counted)"
-            self.tp.warnings.append(ToolpathWarning(SourceRef(file, line, col), message, category))
+            self.tp.warnings.append(ToolpathWarning(SourceRef(file, line, col),
+                                                    without_lenient_hint(message), category))
 
     def report(self, file: str, line: int, col: int, reason: str, category: str) -> None:
         """Strict: raise. Lenient: warn and count ``category`` as skipped."""
