@@ -43,6 +43,7 @@ __all__ = [
     "Evaluation",
     "Limits",
     "PathModel",
+    "engaged_samples",
     "model_parameters",
 ]
 
@@ -63,6 +64,22 @@ MARGIN_SCALE = 1e5
 #: Outputs of the point Function the planner needs (a smaller graph is faster).
 _OUTPUTS = ("force_o", "force_base", "deflection", "margin", "stable", "gamma", "gamma_margin",
             "power", "omega2")
+
+
+def engaged_samples(s: np.ndarray, engaged: np.ndarray) -> np.ndarray:
+    """``engaged`` (n,) bool without the samples that add no path: a sample whose step is of zero
+    length (a zero-length move, a repeated point) removes no material of its own, so it is
+    engaged only when the sample before it is (it then belongs to that cut); an engaged
+    zero-length sample after an unengaged one would otherwise make a cut section of 0 m."""
+    out = np.asarray(engaged, bool).copy()
+    if out.size == 0:
+        return out
+    ds = np.diff(s, prepend=s[0])
+    out[0] = out[0] and out.size > 1 and bool(out[1])
+    for i in np.flatnonzero(ds <= 0.0):
+        if i > 0 and out[i] and not out[i - 1]:
+            out[i] = False
+    return out
 
 
 def model_parameters(job: Job, prep: Prepared) -> ModelParameters:
@@ -168,7 +185,8 @@ class PathModel:
         self.threads = threads
         self.progress = progress
         e = prep.engagement
-        cutting = prep.path.cutting & (e.mode >= 0) & prep.kinematics.reachable
+        cutting = engaged_samples(prep.path.s, prep.path.cutting & (e.mode >= 0)
+                                  & prep.kinematics.reachable)
         #: indices of the engaged samples into the path, (m,).
         self.index = np.flatnonzero(cutting)
         feed_dir = e.feed_dir if e.feed_dir is not None else prep.path.feed_dir

@@ -5,9 +5,11 @@ feed ceilings. This checker does neither: for every ``cut`` sample it calls the 
 model (:meth:`models.point.PointModel.analyze`: one pose, its own joint-limit and singularity
 checks) at the *planned* feed of that sample, and computes the spindle power by integrating the
 instantaneous tangential edge force over the engaged arc numerically (not the closed form the
-planner uses). It then checks the plan's own bookkeeping: feeds inside the bounds, neighbouring cut
-sections within the feed-change bound, sections no shorter than the minimum (unless their whole
-run is), and the timed path speed never above the planned feed.
+planner uses). It then checks the plan's own bookkeeping: feeds inside the bounds, no cut faster
+than its programmed feed × ``cam_feed_scale_max`` and no air move faster than programmed or than
+the rapid speed, neighbouring cut sections within the feed-change bound, sections no shorter than
+the minimum (unless their whole run is) and never empty, and the timed path speed never above the
+planned feed.
 """
 
 from __future__ import annotations
@@ -137,12 +139,30 @@ def check_plan(prep: Prepared, feed: np.ndarray, kinds: np.ndarray, speed: np.nd
         if not ok:
             viol.append(Violation(int(k), "chatter", float(value), float(limit), path.where(k)))
     ds = step_lengths(path.s)
-    for a, _, kind, f in sections:
-        if kind == RAPID:
+    prog = path.feed
+    ds = step_lengths(path.s)
+    for a, b, kind, f in sections:
+        if b <= a:
+            viol.append(Violation(a, "section_samples", float(b - a), 1.0, path.where(a)))
             continue
-        if not (limits.feed_min * (1 - REL_TOL) <= f <= limits.feed_max * (1 + REL_TOL)):
-            bound = limits.feed_min if f < limits.feed_min else limits.feed_max
-            viol.append(Violation(a, "feed_bounds", f, bound, path.where(a)))
+        if kind == RAPID:
+            if f > limits.rapid_speed * (1 + REL_TOL):
+                viol.append(Violation(a, "rapid_speed", f, limits.rapid_speed, path.where(a)))
+            continue
+        if kind == CUT:
+            if not (limits.feed_min * (1 - REL_TOL) <= f <= limits.feed_max * (1 + REL_TOL)):
+                bound = limits.feed_min if f < limits.feed_min else limits.feed_max
+                viol.append(Violation(a, "feed_bounds", f, bound, path.where(a)))
+            cap = prog[a:b] * limits.cam_feed_scale_max
+        else:   # air: as programmed, never above the rapid speed
+            if f > limits.rapid_speed * (1 + REL_TOL):
+                viol.append(Violation(a, "rapid_speed", f, limits.rapid_speed, path.where(a)))
+            cap = prog[a:b]
+        # a sample that adds no path (ds = 0) has no speed of its own
+        over = np.flatnonzero(np.isfinite(cap) & (f > cap * (1 + REL_TOL)) & (ds[a:b] > 0.0))
+        if over.size:
+            k = a + int(over[0])
+            viol.append(Violation(k, "cam_feed", f, float(cap[over[0]]), path.where(k)))
     runs = kind_runs(kinds)
     run_of = np.zeros(len(path), int)
     for i, (a, b, _) in enumerate(runs):

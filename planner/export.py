@@ -112,6 +112,9 @@ class KrlProgram:
     sample_of_move: tuple[int, ...]
 
 
+#: Toolpath warning kinds listed in the program's comment header (the rest: plan.json).
+_WARNING_COMMENTS = 8
+
 def _feed_m_s(feed: float, kind: str) -> float:
     """The section's ``$VEL.CP`` [m/s]: the planned feed rounded down to whole resolution steps,
     exactly (on the float's own decimal value, so 0.005 stays 0.005), as the nearest float to
@@ -282,6 +285,11 @@ def plan_to_krl(plan: Plan | str | os.PathLike, name: str | None = None,
                 f"plan: {where}",
                 "poses: TCP in $BASE [mm, deg]; $VEL.CP [m/s]; feeds in the .dat, retune there",
                 f"cycle time (planned) {plan.cycle_time:.1f} s at $OV_PRO 100"]
+    for g in plan.import_warnings[:_WARNING_COMMENTS]:
+        comments.append(f"toolpath warning ({g.kind} x{g.count}): {g.first}: {g.message}")
+    if len(plan.import_warnings) > _WARNING_COMMENTS:
+        comments.append(f"... {len(plan.import_warnings) - _WARNING_COMMENTS} more kinds of "
+                        "toolpath warning: see plan.json import_warnings")
     spec = KrlProgramSpec(
         name=prog, bco_axes_deg=tuple(float(x) for x in q0), controller=controller,
         base=KrlFrame(*plan.frame_mm_deg("base")) if base_index is None else base_index,

@@ -31,6 +31,8 @@ class Limits:
         path_acc_max: path acceleration of feed transitions [m/s²].
         path_jerk_max: path jerk of feed transitions [m/s³].
         rapid_speed: path-speed bound on rapid moves [m/s].
+        cam_feed_scale_max: no cut sample runs faster than its programmed feed × this [-]
+            (``inf``: the programmed feed is no limit; plans of older versions).
     """
 
     force_max: float
@@ -44,6 +46,7 @@ class Limits:
     path_acc_max: float
     path_jerk_max: float
     rapid_speed: float
+    cam_feed_scale_max: float = 1.0
 
     @classmethod
     def from_job(cls, job: Job) -> Limits:
@@ -56,7 +59,8 @@ class Limits:
                    margin_min=lim.margin_min_n_per_m,
                    section_length_min=lim.section_length_min_mm * 1e-3,
                    path_acc_max=lim.path_acc_max_m_s2, path_jerk_max=lim.path_jerk_max_m_s3,
-                   rapid_speed=lim.rapid_mm_s * 1e-3)
+                   rapid_speed=lim.rapid_mm_s * 1e-3,
+                   cam_feed_scale_max=lim.cam_feed_scale_max)
 
     @classmethod
     def from_json(cls, doc: dict[str, Any]) -> Limits:
@@ -77,7 +81,8 @@ class Limits:
                    section_length_min=get("section_length_min_mm", 1e-3, 0.0),
                    path_acc_max=get("path_acc_max_m_s2", 1.0, math.inf),
                    path_jerk_max=get("path_jerk_max_m_s3", 1.0, math.inf),
-                   rapid_speed=get("rapid_mm_s", 1e-3, math.inf))  # type: ignore[arg-type]
+                   rapid_speed=get("rapid_mm_s", 1e-3, math.inf),  # type: ignore[arg-type]
+                   cam_feed_scale_max=get("cam_feed_scale_max", 1.0, math.inf))  # type: ignore[arg-type]
 
     def as_json(self, safety_factor: float) -> dict:
         """The ``constraints`` object of plan.json (units in the names)."""
@@ -90,5 +95,8 @@ class Limits:
             "margin_min_N_per_m": self.margin_min,
             "section_length_min_mm": self.section_length_min * 1e3,
             "path_acc_max_m_s2": self.path_acc_max, "path_jerk_max_m_s3": self.path_jerk_max,
-            "rapid_mm_s": self.rapid_speed * 1e3, "safety_factor": safety_factor,
+            "rapid_mm_s": self.rapid_speed * 1e3,
+            "cam_feed_scale_max": None if math.isinf(self.cam_feed_scale_max)
+            else self.cam_feed_scale_max,
+            "safety_factor": safety_factor,
         }

@@ -29,6 +29,8 @@ from typing import Any
 import numpy as np
 
 from models.errors import CctmillError, InputError
+from models.tooling import load_material
+from planner.cam_feed import apply_cam_feed, cam_feed_caps, check_rapid_above_feed, non_cut_sections
 from planner.ceilings import CONSTRAINTS, Ceilings, Evaluation, PathModel
 from planner.job import Job
 from planner.limits import Limits
@@ -37,11 +39,11 @@ from planner.partition import cut_time_bound, fastest_splits
 from planner.plan_file import KINDS, Plan, PlanSamples, PlanSection, SectionCharacteristic, SolverRecord
 from planner.prepare import Prepared, prepare
 from planner.sections import (
-    AIR,
     CUT,
     RAPID,
     Section,
     kind_runs,
+    merge_empty_sections,
     sample_kinds,
     section_of_samples,
     split_by_length,
@@ -49,6 +51,15 @@ from planner.sections import (
 )
 from planner.thesis_sections import thesis_sections
 from planner.timing import ROBOT_LIMITED_SECTION, Timing, time_path
+from planner.tool_limits import (
+    TOOL_BINDING,
+    PlanWarning,
+    check_spindle_speed,
+    rubbing_warnings,
+    tool_feed_cap,
+    tool_warnings,
+)
+from robot_io.diagnostics import group_warnings
 from robot_io.krl.reader import matrices_to_abc
 
 __all__ = [
@@ -106,6 +117,8 @@ class PlanResult:
         cut_time_bound: the least cut time Σ L/f any plan with sections of at least
             ``section_length_min`` can have under these limits [s]
             (:func:`planner.partition.cut_time_bound`).
+        warnings: what the plan's user must know that did not stop it (tool data that do not
+            apply, coefficients identified with another tool, rubbing, engagement).
     """
 
     method: str
@@ -123,6 +136,7 @@ class PlanResult:
     wall_times: dict[str, float] = field(default_factory=dict)
     plan_sections: tuple[PlanSection, ...] = ()
     cut_time_bound: float = float("nan")
+    warnings: tuple[PlanWarning, ...] = ()
 
     @property
     def section_rows(self) -> list[dict[str, Any]]:
@@ -196,25 +210,6 @@ def _check_floor(prep: Prepared, model: PathModel, ceil: Ceilings, runs, ds, lim
         section=cell, constraint=what, sample=sample)
 
 
-def _other_sections(runs, prep: Prepared, limits: Limits) -> list[Section]:
-    out = []
-    plunge = prep.engagement.plunge
-    prog = prep.path.feed
-    for a, b, kind in runs:
-        if kind == RAPID:
-            out.append(Section(a, b, RAPID, limits.rapid_speed, "feed_max", "rapid move"))
-        elif kind == AIR:
-            feed, note = limits.feed_max, "not engaged: feed_max"
-            if plunge is not None and np.any(plunge[a:b]):
-                f = prog[a:b][plunge[a:b]]
-                f = f[np.isfinite(f)]
-                if f.size:
-                    feed = float(np.clip(f.min(), limits.feed_min, limits.feed_max))
-                    note = "plunge (not modelled): programmed feed kept"
-            out.append(Section(a, b, AIR, feed, "feed_max", note))
-    return out
-
-
 def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float | None = None,
                   limits: Limits | None = None, f_ref: float | None = None,
                   thesis_every_sample: bool = True, progress: bool = False) -> PlanResult:
@@ -241,7 +236,12 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
     prep.kinematics.raise_if_unreachable()
     model = PathModel(prep, limits=limits, progress=progress)
     limits = model.limits
-    ceil = model.ceilings()
+    check_rapid_above_feed(limits)
+    spindle_speed = job.to_si().spindle_speed
+    check_spindle_speed(prep.tool, spindle_speed)
+    caps = cam_feed_caps(prep.path, model.index, limits)
+    tool_cap = np.full(len(model), tool_feed_cap(prep.tool, spindle_speed))
+    ceil = apply_cam_feed(apply_cam_feed(model.ceilings(), tool_cap, TOOL_BINDING), caps)
     walls["ceilings_s"] = time.perf_counter() - t
     path = prep.path
     n = len(path)
@@ -279,7 +279,9 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
                 limits.section_length_min, limits.feed_change_max,
                 job.plan.section_change_cost_s, warm=warm, f_ref=f_ref, cells=splits)
     walls["sections_s"] = time.perf_counter() - t
-    sections = sorted(cut + _other_sections(runs, prep, limits), key=lambda x: x.start)
+    sections = merge_empty_sections(
+        sorted(cut + non_cut_sections(runs, path, prep.engagement.plunge, limits),
+               key=lambda x: x.start), ds)
     feed = np.empty(n)
     for sec in sections:
         feed[sec.start:sec.stop] = sec.feed
@@ -290,9 +292,17 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
     timing = time_path(path.s, prep.kinematics.q, feed, data.velocity, data.acceleration,
                        limits.path_acc_max, limits.path_jerk_max)
     walls["timing_s"] = timing.compute_time
+    cut_secs = [sec for sec in sections if sec.kind == CUT]
+    warnings = [*prep.warnings, *getattr(prep.engagement, "warnings", ()),
+                *tool_warnings(prep.tool, load_material(job.material)),
+                *rubbing_warnings(prep.tool, spindle_speed, np.array([c.feed for c in cut_secs]),
+                                  [(int(path.line[c.start]), int(path.line[c.stop - 1]))
+                                   for c in cut_secs])]
     result = PlanResult(method=method, prep=prep, model=model, ceilings=ceil, sections=sections,
                         feed=feed, kinds=kinds, evaluation=evaluation, timing=timing,
-                        solver=solver, limits=limits, safety_factor=sf, wall_times=walls)
+                        solver=solver, limits=limits, safety_factor=sf, wall_times=walls,
+                        warnings=tuple(w if isinstance(w, PlanWarning)
+                                       else PlanWarning("engagement", str(w)) for w in warnings))
     t = time.perf_counter()
     result.plan_sections = _plan_sections(result, ceiling, pos)
     result.cut_time_bound = cut_time_bound(splits, ds, ceiling)
@@ -433,7 +443,8 @@ def plan_of_result(res: PlanResult) -> Plan:
         limits=res.limits, safety_factor=res.safety_factor, sections=res.plan_sections,
         samples=_plan_samples(res), cycle_time=res.cycle_time, process_time=res.process_time,
         solver=SolverRecord.from_json(res.solver.as_json()),
-        wall_times=dict(res.wall_times), summary=summary(res))
+        wall_times=dict(res.wall_times), summary=summary(res),
+        import_warnings=group_warnings(res.prep.toolpaths), warnings=res.warnings)
 
 
 def summary(res: PlanResult) -> dict[str, Any]:

@@ -27,6 +27,8 @@ from models.errors import DataFileError
 from planner._atomic import atomic_path, write_text_atomic
 from planner.limits import Limits
 from planner.plan_samples import SAMPLE_ARRAYS, SAMPLE_EXTRA, PlanSamples, from_file_unit, to_file_unit
+from planner.tool_limits import PlanWarning
+from robot_io.diagnostics import WarningGroup
 
 __all__ = [
     "BINDINGS",
@@ -49,7 +51,8 @@ __all__ = [
 FORMAT = "cctmill-plan"
 VERSION = 1
 #: What can bind a section's feed.
-BINDINGS = ("chatter", "force", "deflection", "power", "robot", "feed_max", "feed_change")
+BINDINGS = ("chatter", "force", "deflection", "power", "robot", "feed_max", "feed_change",
+            "cam_feed", "rapid", "tool")
 #: Section / sample kinds, in the order of their integer codes in ``samples.npz``.
 KINDS = ("cut", "air", "rapid")
 #: Decimals of a frame's mm and degree values in plan.json: the frame is the job's, typed in mm
@@ -295,6 +298,10 @@ class Plan:
         solver: how the feeds were found.
         wall_times: wall time of each planning stage [s] (names with ``_s``, as in the file).
         summary: headline numbers (units in the names: a report, as in the file).
+        import_warnings: what reading the toolpaths warned about, one group per kind and file
+            (plan.json ``import_warnings``: kind, count, first file:line:col, message).
+        warnings: what else the plan's user must know (plan.json ``warnings``: kind, message):
+            tool data that do not apply, coefficients of another tool, rubbing, engagement.
         path: the ``plan.json`` it was read from or saved to (None for a plan only in memory).
     """
 
@@ -321,6 +328,8 @@ class Plan:
     process_time: float | None = None
     wall_times: dict[str, float] = field(default_factory=dict)
     summary: dict[str, Any] = field(default_factory=dict)
+    import_warnings: tuple[WarningGroup, ...] = ()
+    warnings: tuple[PlanWarning, ...] = ()
     path: Path | None = None
 
     @property
@@ -365,6 +374,8 @@ class Plan:
             "cycle_time_s": self.cycle_time, "process_time_s": self.process_time,
             "solver": self.solver.as_json(), "wall_times_s": dict(self.wall_times),
             "summary": self.summary,
+            "import_warnings": [w.as_json() for w in self.import_warnings],
+            "warnings": [w.as_json() for w in self.warnings],
         }
 
     def save(self, folder: str | os.PathLike) -> Plan:
@@ -404,7 +415,10 @@ class Plan:
                    tool_diameter=from_file_unit(_opt(doc.get("tool_diameter_mm")), 1e3),
                    model=dict(doc.get("model") or {}), process_time=_opt(doc.get("process_time_s")),
                    wall_times=dict(doc.get("wall_times_s") or {}),
-                   summary=dict(doc.get("summary") or {}))
+                   summary=dict(doc.get("summary") or {}),
+                   import_warnings=tuple(WarningGroup.from_json(w)
+                                         for w in doc.get("import_warnings") or ()),
+                   warnings=tuple(PlanWarning.from_json(w) for w in doc.get("warnings") or ()))
 
 
 def _resolve(path: str | os.PathLike) -> Path:

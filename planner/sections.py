@@ -15,7 +15,7 @@ Sections never mix kinds. The optimiser and the thesis baseline split the ``cut`
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -25,6 +25,7 @@ __all__ = [
     "RAPID",
     "Section",
     "kind_runs",
+    "merge_empty_sections",
     "sample_kinds",
     "section_of_samples",
     "split_by_length",
@@ -57,6 +58,31 @@ class Section:
 def step_lengths(s: np.ndarray) -> np.ndarray:
     """ds[k] = s[k] − s[k−1], ds[0] = 0 [m], shape (n,)."""
     return np.concatenate([[0.0], np.diff(s)])
+
+
+def merge_empty_sections(sections: list[Section], ds: np.ndarray) -> list[Section]:
+    """``sections`` (in path order) with every section that adds no path (its samples' steps
+    sum to 0 m: a zero-length move, a repeated point) joined to the section before it (the
+    first one to the section after it). Such a section takes no time and cuts nothing; on its
+    own it would be a 0 m section in the plan and the KRL program."""
+    out: list[Section] = []
+    pending: Section | None = None     # empty sections before the first non-empty one
+    for sec in sections:
+        empty = sec.stop <= sec.start or float(ds[sec.start:sec.stop].sum()) <= 0.0
+        if not empty:
+            if pending is not None:
+                sec = replace(sec, start=pending.start)
+                pending = None
+            out.append(sec)
+        elif out:
+            out[-1] = replace(out[-1], stop=sec.stop)
+        elif pending is None:
+            pending = sec
+        else:
+            pending = replace(pending, stop=sec.stop)
+    if pending is not None:         # nothing but empty sections: keep them as one
+        out.append(pending)
+    return out
 
 
 def sample_kinds(n: int, engaged: np.ndarray, cutting: np.ndarray) -> np.ndarray:

@@ -307,12 +307,15 @@ def test_shipped_material_and_tool() -> None:
     assert "al6061" in available_materials()
     assert "em25_2f" in available_tools()
     material = load_material("al6061")
-    assert material == Material("al6061", 9.04e8, 2.94e8, 2.78e8, 6.09e3, 6.6e3, 1.12e3)
+    assert material == Material("al6061", 9.04e8, 2.94e8, 2.78e8, 6.09e3, 6.6e3, 1.12e3,
+                                identified_with="em25_2f")
     np.testing.assert_array_equal(material.coefficients(), COEFFS)
     tool = load_tool("em25_2f")
     assert tool.flutes == 2
     assert tool.radius == pytest.approx(RADIUS, rel=1e-15)
     assert tool.helix_angle == pytest.approx(math.radians(30.0), rel=1e-15)
+    assert (tool.feed_per_tooth_min, tool.feed_per_tooth_max) == pytest.approx((5e-5, 2.5e-4))
+    assert tool.spindle_speed_max == pytest.approx(20000.0 * 2 * math.pi / 60.0)
     # A Material can stand for its coefficient vector.
     np.testing.assert_array_equal(
         average_np(feed_c(), A_E, A_P, "up"),

@@ -13,7 +13,15 @@ from models.point import CRITERIA, PointModel
 from models.robot import DEFAULT_ROBOT, available_robots
 from planner.point_setup import PointSetup
 
-__all__ = ["Parser", "add_point_flags", "feed_range", "floats", "point_setup"]
+__all__ = [
+    "Parser",
+    "add_point_flags",
+    "add_reader_flags",
+    "feed_range",
+    "floats",
+    "point_setup",
+    "reader_options",
+]
 
 
 class Parser(argparse.ArgumentParser):
@@ -31,6 +39,54 @@ def floats(text: str, n: int, flag: str) -> np.ndarray:
     if values.size != n or not np.all(np.isfinite(values)):
         raise InputError(flag, f"need {n} finite comma-separated numbers, got {text!r}")
     return values
+
+
+def add_reader_flags(p: argparse.ArgumentParser) -> None:
+    """The toolpath reader's options as flags (those a job sets in its ``[job]`` table)."""
+    from robot_io.rotary import ROTARY_KINEMATICS
+
+    g = p.add_argument_group("reading the toolpath")
+    g.add_argument("--lenient", action="store_true",
+                   help="collect problems as warnings instead of stopping at the first")
+    g.add_argument("--format", choices=("gcode", "apt", "krl"),
+                   help="toolpath format (default: from the extension, else the content)")
+    g.add_argument("--units", choices=("mm", "inch"),
+                   help="units of a program that declares none (G20/G21, UNITS/ win)")
+    g.add_argument("--rotary", choices=["none", *ROTARY_KINEMATICS],
+                   help="G-code A/B/C kinematics (table-table, LinuxCNC's trt order)")
+    g.add_argument("--apply-frames", action="store_true",
+                   help="APT/CL: map points through the CSYS/MSYS setup frame (CL data written "
+                        "in local setup coordinates)")
+    g.add_argument("--initial-position-mm", metavar="X,Y,Z",
+                   help="G-code: the tool position before the first move [mm]")
+    g.add_argument("--chord-tol-mm", type=float, metavar="MM",
+                   help="APT/CL: largest chord error when splines become straight moves [mm] "
+                        "(default 0.01)")
+    g.add_argument("--arc-radius-tol-mm", type=float, metavar="MM",
+                   help="G-code and APT/CL: allowed start/end radius mismatch of an arc [mm] "
+                        "(default the larger of 0.002 mm and 0.1 %% of the radius)")
+
+
+def reader_options(args: argparse.Namespace) -> dict:
+    """The reader keyword options (SI) of the flags of :func:`add_reader_flags` that were given."""
+    out: dict = {}
+    if args.units:
+        out["default_units"] = args.units
+    if args.rotary:
+        out["rotary"] = args.rotary
+    if args.apply_frames:
+        out["apply_frames"] = True
+    if args.initial_position_mm:
+        out["initial_position"] = tuple(
+            floats(args.initial_position_mm, 3, "--initial-position-mm") * 1e-3)
+    for flag, key in (("chord_tol_mm", "chord_tol"), ("arc_radius_tol_mm", "arc_radius_tol")):
+        v = getattr(args, flag)
+        if v is not None:
+            if not (np.isfinite(v) and v > 0):
+                raise InputError("--" + flag.replace("_", "-"), f"must be a positive length in "
+                                 f"mm, got {v}")
+            out[key] = v * 1e-3
+    return out
 
 
 def add_point_flags(p: argparse.ArgumentParser, with_feed: bool) -> None:

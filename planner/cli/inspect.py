@@ -6,6 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
+from planner.cli._common import add_reader_flags, reader_options
+
 __all__ = ["inspect_table", "register"]
 
 
@@ -25,15 +27,31 @@ def inspect_table(summary: dict) -> str:
                                                                         strict=True)) + " mm")
     if feeds:
         rows.append(f"feed          {feeds['min']:.1f} .. {feeds['max']:.1f} mm/min")
-    axis = "yes (5-axis / tool-axis vectors)" if summary["has_tool_axis"] else "no (3-axis)"
+    n_axes = summary.get("tool_axes", 0)
+    if not summary["has_tool_axis"]:
+        axis = "+z only (3-axis)" if n_axes else "none given (3-axis)"
+    elif summary.get("tool_axis_turning_moves", 0) == 0:
+        axis = f"{n_axes} distinct ax{'is' if n_axes == 1 else 'es'} (indexed 3+2)"
+    else:
+        axis = (f"{n_axes} distinct axes, turned during {summary['tool_axis_turning_moves']} "
+                "feed moves (simultaneous 5-axis)")
     rows.append(f"tool axis     {axis}")
     if summary["skipped"]:
         rows.append("skipped       " + ", ".join(f"{k} {v}" for k, v in
                                                 sorted(summary["skipped"].items())))
-    rows.append(f"warnings      {len(summary['warnings'])}")
-    rows += [f"  {w}" for w in summary["warnings"][:20]]
-    if len(summary["warnings"]) > 20:
-        rows.append(f"  ... {len(summary['warnings']) - 20} more (use --json)")
+    groups = summary.get("warning_groups")
+    if groups is None:
+        rows.append(f"warnings      {len(summary['warnings'])}")
+        rows += [f"  {w}" for w in summary["warnings"][:20]]
+        if len(summary["warnings"]) > 20:
+            rows.append(f"  ... {len(summary['warnings']) - 20} more (use --json)")
+    else:
+        total = sum(g["count"] for g in groups)
+        rows.append(f"warnings      {total}" + (f" ({len(groups)} kinds; every one with --json)"
+                                                if total > len(groups) else ""))
+        for g in groups:
+            more = f" ({g['count']} in all)" if g["count"] > 1 else ""
+            rows.append(f"  {g['kind']}: {g['first']}: {g['message']}{more}")
     return "\n".join(rows)
 
 
@@ -77,9 +95,14 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
             if args.plot:
                 print(f"plot: {args.plot}")
         return 0
-    options = {"rotary": args.rotary} if args.rotary else {}
-    tp = read_toolpath(target, strict=not args.lenient, **options)
+    from robot_io.diagnostics import group_warnings
+    from robot_io.options import speaking
+
+    with speaking("cli"):
+        tp = read_toolpath(target, strict=not args.lenient, format=args.format,
+                           **reader_options(args))
     summary = summarize(tp)
+    summary["warning_groups"] = [g.as_json() for g in group_warnings([tp])]
     print(json.dumps(summary, indent=2) if args.json else inspect_table(summary))
     return 0
 
@@ -90,10 +113,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                                        "engagement)")
     pi.add_argument("file", help="toolpath (.nc/.ngc/.apt/.cl/.src) or job file (.toml)")
     pi.add_argument("--json", action="store_true", help="print JSON (SI)")
-    pi.add_argument("--lenient", action="store_true",
-                    help="collect problems as warnings instead of stopping at the first")
-    pi.add_argument("--rotary", choices=["none", "xyzac-trunnion"],
-                    help="G-code rotary-axis kinematics for A/B/C words")
+    add_reader_flags(pi)
     pi.add_argument("--plot", metavar="FILE.png",
                     help="(job) joint angles and engagement along the path")
     pi.set_defaults(run=_cmd_inspect)

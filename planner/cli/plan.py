@@ -56,6 +56,18 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         print(json.dumps(doc, indent=2))
         return 0
     print(section_table(res))
+    groups = outputs.plan.import_warnings
+    if groups:
+        total = sum(g.count for g in groups)
+        kinds = f"{len(groups)} kind{'s' if len(groups) != 1 else ''}"
+        print(f"\ntoolpath warnings: {total} ({kinds}; in plan.json import_warnings and "
+              "report.html)")
+        for g in groups:
+            print(f"  {g.kind}: {g}")
+    if outputs.plan.warnings:
+        print("\nplan warnings:")
+        for w in outputs.plan.warnings:
+            print(f"  {w}")
     print(f"\n{res.method}: cycle {res.cycle_time:.2f} s (process {res.process_time:.2f} s), "
           f"{len(res.plan_sections)} sections; solver {res.solver.status} "
           f"({res.solver.iterations} iterations)")

@@ -38,6 +38,7 @@ __all__ = [
 BINDING_COLOURS = {
     "chatter": "#d62728", "force": "#ff7f0e", "deflection": "#9467bd", "power": "#8c564b",
     "robot": "#1f77b4", "feed_max": "#2ca02c", "feed_change": "#7f7f7f",
+    "cam_feed": "#17becf", "rapid": "#bcbd22", "tool": "#e377c2",
 }
 
 
@@ -200,7 +201,33 @@ def _fmt(v: Any, spec: str = ".3g") -> str:
 _CSS = """body{font-family:system-ui,sans-serif;margin:1.5em;max-width:1200px;color:#222}
 h1{font-size:1.4em}h2{font-size:1.1em;margin-top:1.6em}table{border-collapse:collapse;font-size:.85em}
 td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}th{background:#f3f3f3}
-img{max-width:100%;border:1px solid #ddd}.note{color:#555;font-size:.9em}"""
+img{max-width:100%;border:1px solid #ddd}.note{color:#555;font-size:.9em}
+.warn{background:#fff4d6;border:1px solid #e0b040;padding:.4em .8em;margin:.8em 0}
+.warn ul{margin:.3em 0;padding-left:1.2em}.warn li{font-size:.9em}"""
+
+
+def _warnings_box(res) -> str:
+    """The headline box of what reading the toolpaths warned about (empty when nothing)."""
+    from robot_io.diagnostics import group_warnings
+
+    groups = group_warnings(res.prep.toolpaths)
+    out = []
+    if groups:
+        total = sum(g.count for g in groups)
+        items = "".join(
+            f"<li><b>{html.escape(g.kind)}</b> ×{g.count} — first at "
+            f"<code>{html.escape(str(g.first))}</code>: {html.escape(g.message)}</li>"
+            for g in groups)
+        out.append(f'<div class="warn"><b>Reading the toolpaths warned {total} time'
+                   f'{"s" if total != 1 else ""} ({len(groups)} kind'
+                   f'{"s" if len(groups) != 1 else ""}); the plan is of the path as read.</b>'
+                   f"<ul>{items}</ul></div>")
+    if res.warnings:
+        items = "".join(f"<li><b>{html.escape(w.kind)}</b>: {html.escape(w.message)}</li>"
+                        for w in res.warnings)
+        out.append(f'<div class="warn"><b>The plan holds, but know this:</b><ul>{items}</ul>'
+                   "</div>")
+    return "\n".join(out)
 
 
 def write_report(res, folder: str | os.PathLike) -> dict[str, Path]:
@@ -243,6 +270,7 @@ def write_report(res, folder: str | os.PathLike) -> dict[str, Path]:
 <h1>cctmill plan — {html.escape(prep.job.job.name)}</h1>
 <p class="note">Every section's feed is the fastest its samples allow under every limit; the
 colour says what stops it going faster. Files: plan.json (sections), samples.npz (every sample).</p>
+{_warnings_box(res)}
 {_table(["", ""], [[k, v] for k, v in summ.items()])}
 <h2>What binds</h2>
 {_table(["binding", "sections"], [[b, n] for b, n in sorted(counts.items())], colour_col=0)}
