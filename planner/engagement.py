@@ -1,16 +1,18 @@
 """Engagement of the tool along a path: radial depth a_e, axial depth a_p, up/down/slot, cutting frame.
 
-Two sources (docs/model.md §8):
+Three sources (docs/model.md §8):
 
 * :func:`fixed_engagement` — per operation from the job file: the same a_e, a_p and mode on every
   cutting sample; only the radial direction follows the path.
-* :func:`stock_engagement` — from a prismatic :class:`Stock` and the path itself (2.5-D: vertical
-  tool, cleared-area polygons per Z level), so a_e, a_p and the mode change where the path enters,
-  leaves or re-cuts material.
+* :func:`zmap_engagement` — from a prismatic :class:`Stock` cut down by the path on a height map
+  (3-axis, :mod:`planner.zmap`): right on helices, ramps and pockets; the job's default with a stock.
+* :func:`stock_engagement` — from the same stock, 2.5-D (vertical tool, cleared-area polygons per Z
+  level, :mod:`planner.stock`): exact on constant-height levels, wrong where the material left
+  varies within a level (a helix smaller than the tool, a ramp across earlier cuts).
 
-Both return an :class:`Engagement` per path sample. The record and its cutting frame (X_o = a × f,
-the milling side) are defined in :mod:`planner.cutting_frame`, the stock source in
-:mod:`planner.stock`; their public names are re-exported here.
+All return an :class:`Engagement` per path sample. The record and its cutting frame (X_o = a × f,
+the milling side) are defined in :mod:`planner.cutting_frame`; the public names of the three
+modules are re-exported here.
 """
 
 from __future__ import annotations
@@ -38,20 +40,27 @@ from planner.stock import (
     RAMP_LEVEL_TOL,
     VERTICAL_AXIS_TOL,
     Stock,
+    below_bottom_warnings,
     stock_engagement,
 )
+from planner.zmap import CELL_FRACTION, SLIVER_TOL, default_cell, zmap_engagement
 
 __all__ = [
     "AIR",
     "ANGULAR_RESOLUTION",
+    "CELL_FRACTION",
     "Engagement",
     "LEVEL_TOL",
     "PLUNGE_TOL",
     "RAMP_LEVEL_TOL",
+    "SLIVER_TOL",
     "Stock",
     "VERTICAL_AXIS_TOL",
+    "below_bottom_warnings",
+    "default_cell",
     "fixed_engagement",
     "stock_engagement",
+    "zmap_engagement",
 ]
 
 _SLOT = MILLING_MODES["slot"]

@@ -53,6 +53,7 @@ __all__ = [
     "KEY_DOCS",
     "KinematicsSection",
     "LimitsSection",
+    "MAX_DEPTH",
     "ModelSection",
     "PathSection",
     "PlanSettings",
@@ -97,7 +98,28 @@ class JobSection(_Section):
     name: str = "job"
     toolpath: list[str] = Field(min_length=1)
     strict: bool = True
-    rotary: Literal["none", "xyzac-trunnion"] | None = None
+    format: Literal["gcode", "apt", "krl"] | None = None
+    units: Literal["mm", "inch"] | None = None
+    rotary: Literal["none", "xyzac-trunnion", "xyzbc-trunnion"] | None = None
+    apply_frames: bool = False
+    initial_position_mm: Vec3 | None = None
+    arc_radius_tol_mm: PosFloat | None = None
+
+    def reader_options(self) -> dict[str, Any]:
+        """The reader options this table sets (SI), for every format; ``planner.prepare`` hands
+        each file the ones its format has."""
+        out: dict[str, Any] = {}
+        if self.units is not None:
+            out["default_units"] = self.units
+        if self.rotary is not None:
+            out["rotary"] = self.rotary
+        if self.apply_frames:
+            out["apply_frames"] = True
+        if self.initial_position_mm is not None:
+            out["initial_position"] = tuple(v * 1e-3 for v in self.initial_position_mm)
+        if self.arc_radius_tol_mm is not None:
+            out["arc_radius_tol"] = self.arc_radius_tol_mm * 1e-3
+        return out
 
     @model_validator(mode="before")
     @classmethod
@@ -148,21 +170,32 @@ class LimitsSection(_Section):
     path_acc_max_m_s2: PosFloat = 1.0
     path_jerk_max_m_s3: PosFloat = 10.0
     rapid_mm_s: PosFloat = 250.0
+    cam_feed_scale_max: PosFloat = 1.0
 
     @model_validator(mode="after")
     def _feed_range(self) -> LimitsSection:
         if self.feed_min_mm_s >= self.feed_max_mm_s:
             raise ValueError("feed_min_mm_s must be below feed_max_mm_s")
+        if self.feed_max_mm_s > self.rapid_mm_s:
+            raise ValueError(
+                f"feed_max_mm_s {self.feed_max_mm_s:g} is above rapid_mm_s {self.rapid_mm_s:g}: "
+                f"the keys are in mm/s ({self.feed_max_mm_s:g} mm/min would be "
+                f"{self.feed_max_mm_s / 60:g} mm/s)")
         return self
 
 
 class StockSection(_Section):
-    """``[engagement.stock]``: a prismatic stock in the workpiece frame."""
+    """``[engagement.stock]``: a prismatic stock in the workpiece frame, and the Z-map's cell."""
 
     box_mm: Annotated[list[float], Field(min_length=4, max_length=4)] | None = None
     outline_mm: list[Annotated[list[float], Field(min_length=2, max_length=2)]] | None = None
     z_bottom_mm: float
     z_top_mm: float
+    zmap_cell_mm: PosFloat | None = None
+
+    def zmap_cell(self) -> float | None:
+        """The Z-map cell size [m], or None for the default (:func:`planner.zmap.default_cell`)."""
+        return None if self.zmap_cell_mm is None else self.zmap_cell_mm * 1e-3
 
     @model_validator(mode="after")
     def _shape(self) -> StockSection:
@@ -179,21 +212,29 @@ class StockSection(_Section):
 
 
 class EngagementSection(_Section):
-    """``[engagement]``: per operation (``fixed``) or from a stock model (``stock``)."""
+    """``[engagement]``: per operation (``fixed``) or from a stock model: ``zmap`` (3-axis height
+    map, the default when an ``[engagement.stock]`` table is given) or ``stock`` (2.5-D levels)."""
 
-    source: Literal["fixed", "stock"] = "fixed"
+    source: Literal["fixed", "stock", "zmap"] | None = None
     ae_mm: PosFloat | None = None
     ap_mm: PosFloat | None = None
     milling: Literal["up", "down", "slot"] = "down"
     stock: StockSection | None = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _default_source(cls, data: Any) -> Any:
+        if isinstance(data, dict) and data.get("source") is None:
+            data = {**data, "source": "fixed" if data.get("stock") is None else "zmap"}
+        return data
 
     @model_validator(mode="after")
     def _complete(self) -> EngagementSection:
         if self.source == "fixed" and (self.ap_mm is None or
                                        (self.ae_mm is None and self.milling != "slot")):
             raise ValueError("fixed engagement needs ae_mm and ap_mm (slot: ap_mm only)")
-        if self.source == "stock" and self.stock is None:
-            raise ValueError("source = 'stock' needs an [engagement.stock] table")
+        if self.source in ("stock", "zmap") and self.stock is None:
+            raise ValueError(f"source = {self.source!r} needs an [engagement.stock] table")
         return self
 
 
@@ -342,7 +383,14 @@ KEY_DOCS: dict[str, str] = {
     "job.name": "job name, used for output names",
     "job.toolpath": "toolpath file(s), G-code / APT-CL / KRL, relative to the job file; read in order",
     "job.strict": "stop at the first problem in a toolpath (false: collect warnings and go on)",
-    "job.rotary": "G-code A/B/C kinematics: none or xyzac-trunnion",
+    "job.format": "toolpath format (gcode, apt, krl); default: from the extension, else the content",
+    "job.units": "units of a toolpath that declares none (mm or inch; G20/G21, UNITS/ win)",
+    "job.rotary": "G-code A/B/C kinematics: none, xyzac-trunnion or xyzbc-trunnion (table-table)",
+    "job.apply_frames": "APT/CL: map points through the CSYS/MSYS setup frame (CL data in local "
+                        "setup coordinates)",
+    "job.initial_position_mm": "G-code: the tool position before the first move [mm]",
+    "job.arc_radius_tol_mm": "G-code and APT/CL: allowed start/end radius mismatch of an arc [mm] "
+                             "(default: the larger of 0.002 mm and 0.1 % of the radius)",
     "cell.robot": "robot data name (URDF + TOML in models/data/robots)",
     "cell.base_mm": "$BASE origin: the workpiece frame in the robot base [mm]",
     "cell.base_abc_deg": "$BASE orientation, KUKA A, B, C [deg] (R = Rz(A) Ry(B) Rx(C))",
@@ -366,15 +414,22 @@ KEY_DOCS: dict[str, str] = {
     "limits.path_acc_max_m_s2": "path acceleration of feed transitions [m/s²] (ruckig)",
     "limits.path_jerk_max_m_s3": "path jerk of feed transitions [m/s³] (ruckig)",
     "limits.rapid_mm_s": "path speed bound on rapid (G0) moves [mm/s]; the joints limit it further",
-    "engagement.source": "fixed (per operation, below) or stock (2.5-D stock model)",
+    "limits.cam_feed_scale_max": "no cut runs faster than its programmed feed times this (1: only "
+                                 "slow down where the process needs it; larger: raise feeds up "
+                                 "to feed_max_mm_s)",
+    "engagement.source": "fixed (per operation, below), zmap (3-axis height map of the stock: helices, "
+                         "ramps, pockets) or stock (2.5-D levels); default zmap with an "
+                         "[engagement.stock] table, else fixed",
     "engagement.ae_mm": "radial depth of cut [mm] (fixed)",
     "engagement.ap_mm": "axial depth of cut [mm] (fixed)",
     "engagement.milling": "up, down or slot (fixed)",
-    "engagement.stock": "the stock table (source = stock)",
+    "engagement.stock": "the stock table (source = zmap or stock)",
     "stock.box_mm": "stock outline as [xmin, ymin, xmax, ymax] in the workpiece frame [mm]",
     "stock.outline_mm": "stock outline as a polygon [[x, y], ...] [mm]",
     "stock.z_bottom_mm": "stock bottom [mm]",
     "stock.z_top_mm": "stock top [mm]",
+    "stock.zmap_cell_mm": "Z-map cell size [mm] (source = zmap); default R/10 of the tool: a_e and "
+                          "a_p errors of about a cell where several cuts meet",
     "model.process_model": "thesis (rank one, default) or oriented (Tlusty)",
     "model.mass_model": "isotropic (stiffness only) or robot (CRBA + spindle)",
     "model.chatter_criterion": "eigen, floquet (exact for the time-periodic cut, docs/model.md §6) or "
@@ -458,8 +513,32 @@ def _describe(err: dict) -> str:
     return f"{prefix}: {err['msg']} (got {err.get('input')!r})"
 
 
+#: Deepest nesting of tables and arrays a job file may have: the schema's deepest value is 5 levels
+#: down (``[engagement.stock] outline_mm = [[x, y], …]``); the bound stops a nesting bomb before
+#: the validator or a message's repr recurses through it.
+MAX_DEPTH = 16
+
+
+def _depth(doc: Any, limit: int) -> int:
+    """How deep tables and arrays nest in a parsed document, counted up to ``limit + 1``
+    (iterative: a nesting bomb never meets a recursion limit here)."""
+    top, stack = 0, [(doc, 1)]
+    while stack and top <= limit:
+        v, d = stack.pop()
+        items = v.values() if isinstance(v, dict) else v if isinstance(v, list) else None
+        if items is not None:
+            top = max(top, d)
+            stack.extend((x, d + 1) for x in items if isinstance(x, dict | list))
+    return top
+
+
 def parse_job(doc: dict, file: str = "<job>", folder: str | Path = ".") -> Job:
     """Validate a parsed TOML document; raise :class:`JobError` listing every problem."""
+    if not isinstance(doc, dict):
+        raise JobError(file, [f"not a job document (a TOML table), got {type(doc).__name__}"])
+    if _depth(doc, MAX_DEPTH) > MAX_DEPTH:
+        raise JobError(file, [f"tables and arrays nest more than {MAX_DEPTH} deep; a job file "
+                              "needs at most 5 (see docs/job.md)"])
     try:
         return Job.model_validate({**doc, "folder": str(folder)})
     except ValidationError as e:
@@ -467,14 +546,28 @@ def parse_job(doc: dict, file: str = "<job>", folder: str | Path = ".") -> Job:
 
 
 def load_job(path: str | Path) -> Job:
-    """Read and validate a job file."""
+    """Read and validate a job file (UTF-8 TOML).
+
+    Raises:
+        JobError: unreadable, not UTF-8, not TOML, nested deeper than :data:`MAX_DEPTH`, or not a
+            valid job (every problem listed).
+    """
     p = Path(path)
     try:
         text = p.read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        line = e.object[:e.start].count(b"\n") + 1
+        raise JobError(str(p), [f"not UTF-8 text (byte 0x{e.object[e.start]:02x} on line {line}); "
+                                "save the job file as UTF-8"]) from None
     except OSError as e:
-        raise JobError(str(p), [f"cannot read: {e.strerror}"]) from e
+        raise JobError(str(p), [f"cannot read: {e.strerror or e}"]) from e
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise JobError(str(p), [f"not valid TOML: {e}"]) from e
+    except RecursionError:
+        raise JobError(str(p), ["not valid TOML: arrays or inline tables nest too deep to read; a "
+                                "job file needs at most 5 levels"]) from None
+    except ValueError as e:      # a value TOML parses but Python cannot hold (e.g. 5000 digits)
+        raise JobError(str(p), [f"not valid TOML: {str(e).split(';')[0]}"]) from None
     return parse_job(doc, str(p), p.parent.resolve())

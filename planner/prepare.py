@@ -12,16 +12,25 @@ from typing import Any
 
 import numpy as np
 
-from models.cutting import MILLING_MODES, Tool, load_tool
+from models.cutting import MILLING_MODES, Tool
 from models.robot import Robot, load_robot
-from planner.engagement import Engagement, Stock, fixed_engagement, stock_engagement
+from planner.engagement import (
+    SLIVER_TOL,
+    Engagement,
+    Stock,
+    fixed_engagement,
+    stock_engagement,
+    zmap_engagement,
+)
 from planner.ik import IKOptions, PathKinematics, solve_path
-from planner.job import Job
+from planner.job import Job, JobError
 from planner.path import PathSamples, sample_toolpath
-from robot_io.readers import read_toolpath
+from planner.tool_limits import PlanWarning, job_tool
+from robot_io.options import OPTION_FORMATS, option_name, speaking
+from robot_io.readers import detect_format, read_toolpath
 from robot_io.toolpath import Toolpath, summarize
 
-__all__ = ["Prepared", "inspect_job", "prepare", "tool_of"]
+__all__ = ["Prepared", "inspect_job", "prepare", "read_job_toolpaths", "tool_of"]
 
 
 @dataclass(frozen=True)
@@ -37,6 +46,8 @@ class Prepared:
         kinematics: joint angles along the path.
         engagement: a_e, a_p, mode and radial direction per sample (radial direction in the robot
             base).
+        warnings: what preparing noticed that the plan must carry (a tool override that drops
+            the tool file's limits).
     """
 
     job: Job
@@ -46,15 +57,43 @@ class Prepared:
     path: PathSamples
     kinematics: PathKinematics
     engagement: Engagement
+    warnings: tuple[PlanWarning, ...] = ()
 
 
 def tool_of(job: Job) -> Tool:
     """The job's cutter: the tool data file with the job's overrides."""
-    base = load_tool(job.tool.name)
-    radius = job.to_si().tool_radius
-    return Tool(name=base.name, flutes=job.tool.flutes or base.flutes,
-                radius=radius if radius is not None else base.radius,
-                helix_angle=base.helix_angle)
+    return job_tool(job.tool.name, job.to_si().tool_radius, job.tool.flutes)[0]
+
+
+def read_job_toolpaths(job: Job, chord_tol: float | None = None) -> tuple[Toolpath, ...]:
+    """Read the job's toolpath files with its ``[job]`` reader options, each file given the
+    options its format has; messages name the job's keys (``[job] strict = false``).
+
+    Args:
+        job: the job.
+        chord_tol: chord tolerance [m] for curves the reader samples (APT splines).
+
+    Raises:
+        ToolpathError: a file cannot be read as written.
+        JobError: a ``[job]`` reader option applies to none of the job's files (it would be
+            ignored).
+    """
+    options = job.job.reader_options()
+    if chord_tol is not None:
+        options["chord_tol"] = chord_tol
+    files = job.toolpath_files()
+    with speaking("job"):
+        formats = [job.job.format or detect_format(p) for p in files]
+        for k in options:
+            applies = OPTION_FORMATS.get(k, ())
+            if k != "chord_tol" and not any(f in applies for f in formats):
+                raise JobError(f"job {job.job.name!r}", [
+                    f"{option_name(k)} applies to {' and '.join(applies)} toolpaths, and this "
+                    "job has none; leave it out"])
+        return tuple(
+            read_toolpath(p, strict=job.job.strict, format=fmt,
+                          **{k: v for k, v in options.items() if fmt in OPTION_FORMATS.get(k, ())})
+            for p, fmt in zip(files, formats, strict=True))
 
 
 def prepare(job: Job, progress: bool = False) -> Prepared:
@@ -65,13 +104,9 @@ def prepare(job: Job, progress: bool = False) -> Prepared:
         progress: show progress on stderr (long paths).
     """
     robot = load_robot(job.cell.robot)
-    tool = tool_of(job)
-    options: dict[str, Any] = {}
-    if job.job.rotary is not None:
-        options["rotary"] = job.job.rotary
-    toolpaths = tuple(read_toolpath(p, strict=job.job.strict, **options)
-                      for p in job.toolpath_files())
+    tool, warnings = job_tool(job.tool.name, job.to_si().tool_radius, job.tool.flutes)
     si = job.to_si()
+    toolpaths = read_job_toolpaths(job, si.chord_tol)
     base = si.base
     path = sample_toolpath(list(toolpaths), base, si.chord_tol, si.step_max)
     fixed = job.kinematics.tool_rotation == "fixed"
@@ -92,15 +127,20 @@ def prepare(job: Job, progress: bool = False) -> Prepared:
             stock = Stock.box(x0, y0, x1, y1, z0, z1)
         else:
             stock = Stock(si.stock_outline, z0, z1)
-        e = stock_engagement(path.position_wp, path.tool_axis_wp, path.cutting, tool.radius,
-                             stock)
+        if eng.source == "zmap":
+            e = zmap_engagement(path.position_wp, path.tool_axis_wp, path.cutting, tool.radius,
+                                stock, cell=eng.stock.zmap_cell(),  # type: ignore[union-attr]
+                                where=path.where, sliver=max(SLIVER_TOL, 2.0 * si.chord_tol))
+        else:
+            e = stock_engagement(path.position_wp, path.tool_axis_wp, path.cutting, tool.radius,
+                                 stock, where=path.where)
     rot = base[:3, :3]
     engagement = Engagement(a_e=e.a_e, a_p=e.a_p, mode=e.mode, radial_dir=e.radial_dir @ rot.T,
                             engaged_angle=e.engaged_angle,
                             feed_dir=None if e.feed_dir is None else e.feed_dir @ rot.T,
-                            plunge=e.plunge)
+                            plunge=e.plunge, warnings=e.warnings)
     return Prepared(job=job, robot=robot, tool=tool, toolpaths=toolpaths, path=path,
-                    kinematics=kin, engagement=engagement)
+                    kinematics=kin, engagement=engagement, warnings=tuple(warnings))
 
 
 def inspect_job(prep: Prepared) -> dict[str, Any]:

@@ -15,7 +15,7 @@ earlier slot) is reported by its envelope. The SPEC force model knows only arcs 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -26,7 +26,14 @@ from shapely.geometry import Polygon
 from models.cutting import MILLING_MODES
 from models.errors import InputError
 from planner._cleared_area import ClearedArea, assign_levels
-from planner.cutting_frame import AIR, Engagement, cutting_mask, radial_directions, unit_axes
+from planner.cutting_frame import (
+    AIR,
+    Engagement,
+    cutting_mask,
+    feed_directions,
+    radial_directions,
+    unit_axes,
+)
 
 __all__ = [
     "ANGULAR_RESOLUTION",
@@ -34,6 +41,7 @@ __all__ = [
     "RAMP_LEVEL_TOL",
     "Stock",
     "VERTICAL_AXIS_TOL",
+    "below_bottom_warnings",
     "stock_engagement",
 ]
 
@@ -59,12 +67,6 @@ _SIDE_PROBE = 0.01
 path, the pass above at the previous level) and its answer would be rounding. A side cut thinner
 than R (1 − cos 0.01) = 5e-5 R is missed — below :data:`_MIN_A_E` for any R < 0.2 m."""
 
-_SMOOTH_TURN = math.radians(15.0)
-"""Consecutive path steps turning by less than this are a sampled curve [rad], and the feed
-direction at the sample between them is their bisector; larger turns are corners of the program,
-where the arriving step's direction is kept. A circle of radius r sampled to a chord tolerance ε
-turns by 2 √(2ε/r) per step: 7° for ε = 10 µm, r = 5 mm."""
-
 _BISECTION_STEPS = 10
 """Bisection steps refining each open end of the engaged arc [-]: the bracket shrinks from one probe
 spacing to 1/1024 of it (3.4e-5 rad at 2°), so a_e is resolved to ≈ 2e-5 R (0.3 µm at R = 12.7 mm),
@@ -82,10 +84,6 @@ _AP_POINTS = 9
 a_p [-]: a wall left by an earlier level shows at all of them; 9 catch a step across the arc to
 within 1/8 of its length."""
 
-_MIN_XY_STEP = 1e-8
-"""A path step shorter than this in XY has no horizontal feed direction [m] (a repeated point, or a
-plunge when z changes by more than the level tolerance); far below any sampling step."""
-
 VERTICAL_AXIS_TOL = math.radians(0.1)
 """Largest angle between the tool axis and +Z that 2.5-D engagement accepts [rad]. At 0.1° the
 tool's flank leans 17 µm over a 10 mm axial depth — below the model's own accuracy; beyond that the
@@ -100,6 +98,56 @@ _MIN_A_E = 1e-5
 """Engagements narrower than this across the feed are reported as AIR [m]: below an end mill's edge
 radius the tool rubs rather than cuts, and it covers the rounding of the swept-area polygons (a
 pass that retraces an earlier one exactly would otherwise show a sliver of a few µm)."""
+
+_MIN_A_P = LEVEL_TOL
+"""Engagements shallower than this along the tool axis are reported as AIR [m], the level
+tolerance: thinner material is rounding of the levels. It also catches the one case where the
+2.5-D rule alone would give a_p ≤ 0: a tool below the stock bottom whose arc meets only what
+earlier levels below the bottom "cleared" — empty space under the stock, not material."""
+
+_DIAMETER_ROUNDING = 1e-9
+"""a_e = R (cos φ_st − cos φ_ex) can exceed 2R only by rounding: by more than this fraction of 2R
+[-] it is a bug in the arc, and raises; within it a_e is clipped to 2R."""
+
+_MAX_BOTTOM_WARNINGS = 10
+"""At most this many runs below the stock bottom are named one by one [-]; one line counts the rest."""
+
+
+def below_bottom_warnings(points: np.ndarray, cutting: np.ndarray, stock: Stock, radius: float,
+                          where: Callable[[int], str] | None = None, tol: float = LEVEL_TOL
+                          ) -> tuple[str, ...]:
+    """One warning per run of consecutive cutting samples whose tool tip lies below the stock bottom
+    (by more than ``tol`` [m]) while the tool overlaps the outline: the program cuts deeper than the
+    stock is thick (a through cut, or a wrong ``z_bottom_mm``). Names the run's deepest sample, its
+    toolpath ``file:line`` (``where(i)``) and the depth, in mm.
+
+    Args:
+        points: tool-tip positions [m], shape (n, 3); cutting: shape (n,) bool; stock: the stock;
+        radius: tool radius R [m]; where: ``file:line`` of a sample (``PathSamples.where``).
+    """
+    z_bottom = float(stock.z_bottom)
+    low = cutting & (points[:, 2] < z_bottom - tol)
+    idx = np.flatnonzero(low)
+    if idx.size:
+        near = shapely.distance(stock.polygon, shapely.points(points[idx, :2])) < radius
+        low[idx[~near]] = False
+        idx = idx[near]
+    if not idx.size:
+        return ()
+    starts = idx[np.concatenate([[True], np.diff(idx) > 1])]
+    stops = idx[np.concatenate([np.diff(idx) > 1, [True]])]
+    out = []
+    for a, b in zip(starts[:_MAX_BOTTOM_WARNINGS], stops[:_MAX_BOTTOM_WARNINGS], strict=True):
+        i = a + int(np.argmin(points[a:b + 1, 2]))
+        place = f" ({where(i)})" if where is not None else ""
+        span = f"samples {a}–{b}" if b > a else f"sample {a}"
+        out.append(f"sample {i}{place}: the tool tip is {(z_bottom - points[i, 2]) * 1e3:.3f} mm "
+                   f"below the stock bottom (z_bottom_mm = {z_bottom * 1e3:g}) on {span}; a_p "
+                   f"counts from the bottom — check [engagement.stock] z_bottom_mm or the program")
+    if starts.size > _MAX_BOTTOM_WARNINGS:
+        out.append(f"… and {starts.size - _MAX_BOTTOM_WARNINGS} more runs of samples below the stock "
+                   f"bottom ({int(low.sum())} samples in all)")
+    return tuple(out)
 
 
 @dataclass(frozen=True)
@@ -173,67 +221,9 @@ class Stock:
 # --------------------------------------------------------------------------------------------------
 
 
-def _feed_directions(points: np.ndarray, cut: np.ndarray, z_tol: float
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per-sample feed directions from the path.
-
-    Returns:
-        feed: unit 3-D direction of the step arriving at each sample, shape (n, 3) (zeros where
-            none) — the same convention as ``PathSamples.feed_dir``, so that X_o built from it is
-            orthogonal to the feed the caller uses.
-        tangent_xy: unit horizontal direction at each sample, for measuring the engaged arc, shape
-            (n, 2) (zeros where none).
-        plunge: cutting samples reached by a vertical step (no horizontal direction), shape (n,).
-
-    ``tangent_xy`` is the arriving step's direction, or where the next step also cuts and turns by
-    less than :data:`_SMOOTH_TURN` (a sampled curve) the bisector of both steps: the tangent at the
-    sample of a circular arc sampled in equal steps. The arriving chord lags it by half a step's
-    turn, and would turn the measured arc by as much. A cutting sample whose arriving step has no XY
-    length takes the directions of the nearest earlier sample of its cutting run that has one, else
-    of the nearest later one (repeated points, the first sample of the path); a vertical arriving
-    step that changes z by more than ``z_tol`` is a plunge, and so is every sample of a run without
-    horizontal motion (drilling).
-    """
-    n = points.shape[0]
-    step = np.zeros_like(points)
-    step[1:] = points[1:] - points[:-1]
-    xy_len = np.hypot(step[:, 0], step[:, 1])
-    has_dir = cut & (xy_len >= _MIN_XY_STEP)
-    plunge = cut & ~has_dir & (np.abs(step[:, 2]) > z_tol)
-    source = np.where(has_dir, np.arange(n), -1)
-    run = np.cumsum(np.concatenate([[1], ~cut[1:] | ~cut[:-1]]))  # consecutive cutting samples
-    fill = np.flatnonzero(cut & ~has_dir & ~plunge)
-    if fill.size:
-        prev = np.maximum.accumulate(source)
-        nxt = np.minimum.accumulate(np.where(has_dir, np.arange(n), n)[::-1])[::-1]
-        for i in fill:
-            if prev[i] >= 0 and run[prev[i]] == run[i]:
-                source[i] = prev[i]
-            elif nxt[i] < n and run[nxt[i]] == run[i]:
-                source[i] = nxt[i]
-            else:
-                plunge[i] = True
-    unit = np.zeros_like(points)
-    unit[has_dir] = step[has_dir] / np.linalg.norm(step[has_dir], axis=1)[:, None]
-    xy = np.zeros((n, 2))
-    xy[has_dir] = step[has_dir, :2] / xy_len[has_dir, None]
-    tangent = xy.copy()
-    xy_next = np.zeros_like(xy)
-    xy_next[:-1] = xy[1:]
-    smooth = has_dir & (np.einsum("ij,ij->i", xy, xy_next) > math.cos(_SMOOTH_TURN))
-    bisector = xy[smooth] + xy_next[smooth]
-    tangent[smooth] = bisector / np.linalg.norm(bisector, axis=1)[:, None]
-    ok = source >= 0
-    feed = np.zeros_like(points)
-    feed_xy = np.zeros((n, 2))
-    feed[ok] = unit[source[ok]]
-    feed_xy[ok] = tangent[source[ok]]
-    return feed, feed_xy, plunge
-
-
 def stock_engagement(points: Any, tool_axis: Any, cutting: Any, tool_radius: float, stock: Stock,
-                     z_tol: float = LEVEL_TOL, angular_resolution: float = ANGULAR_RESOLUTION
-                     ) -> Engagement:
+                     z_tol: float = LEVEL_TOL, angular_resolution: float = ANGULAR_RESOLUTION,
+                     where: Callable[[int], str] | None = None) -> Engagement:
     """Engagement from a prismatic stock and the path (2.5-D: vertical tool, cleared area per Z level).
 
     Args:
@@ -248,6 +238,7 @@ def stock_engagement(points: Any, tool_axis: Any, cutting: Any, tool_radius: flo
         stock: the stock.
         z_tol: tip heights within this of a level's lowest height form one Z level [m].
         angular_resolution: probe spacing on the tool circle [rad].
+        where: ``file:line`` of sample i (``PathSamples.where``), for the messages and warnings.
 
     Algorithm. The step arriving at a cutting sample sweeps a stadium (the step buffered by R) and
     clears its column from the tip up to the stock top. Tip heights are grouped into Z levels
@@ -267,7 +258,13 @@ def stock_engagement(points: Any, tool_axis: Any, cutting: Any, tool_radius: flo
     none); at engaged points h > z. a_p = max of h over up to :data:`_AP_POINTS` engaged probes
     spread along the arc (read :data:`_AP_INSET` inside the circle), minus the tip height (raised to
     z_bottom when the tool cuts through the stock): the tallest wall the flutes meet. In a pocket
-    cut level by level this is the level step; on a helical ramp, the pitch.
+    cut level by level this is the level step; on a helical ramp, the pitch — when the pitch spans
+    levels; a helix whose radius is below R has no level structure, and its a_p at the bottom is
+    the bore depth (use :func:`planner.zmap.zmap_engagement`).
+
+    Guards: a_p < :data:`_MIN_A_P` (including a_p ≤ 0, an arc under the stock bottom) is AIR; a_e is
+    clipped to 2R (rounding only; more raises); a tool below ``stock.z_bottom`` is a warning in
+    ``Engagement.warnings`` (:func:`below_bottom_warnings`).
 
     Not modelled: cutting with the tool's bottom only (plunges are AIR with ``plunge`` set), the back
     half of the tool, tilted tools (use :func:`planner.engagement.fixed_engagement`).
@@ -296,13 +293,14 @@ def stock_engagement(points: Any, tool_axis: Any, cutting: Any, tool_radius: flo
     bad = np.flatnonzero(cut & (tilt > VERTICAL_AXIS_TOL))
     if bad.size:
         i = bad[0]
-        raise InputError("tool_axis", f"sample {i}: the tool axis is {math.degrees(tilt[i]):.3g} deg "
+        place = f" ({where(i)})" if where is not None else ""
+        raise InputError("tool_axis", f"sample {i}{place}: the tool axis is {math.degrees(tilt[i]):.3g} deg "
                          f"from +Z; 2.5-D engagement from a stock needs a vertical tool (within "
                          f"{math.degrees(VERTICAL_AXIS_TOL):g} deg) — use fixed engagement for 5-axis")
 
     radius = float(tool_radius)
     z_top, z_bottom = float(stock.z_top), float(stock.z_bottom)
-    feed, feed_xy, plunge = _feed_directions(pts, cut, z_tol)
+    feed, feed_xy, plunge = feed_directions(pts, cut, z_tol)
     in_stock = cut & (pts[:, 2] < z_top - z_tol)
     dz = np.abs(np.diff(pts[:, 2], prepend=pts[0, 2]))
     level_z, lvl = assign_levels(pts[in_stock, 2], dz[in_stock] <= z_tol, z_tol,
@@ -382,7 +380,13 @@ def stock_engagement(points: Any, tool_axis: Any, cutting: Any, tool_radius: flo
             a_p[rows] = np.minimum(h.max(axis=1), z_top) - np.maximum(pts[rows, 2], z_bottom)
         area.commit()
 
-    thin = (mode != AIR) & (a_e < _MIN_A_E)
+    over = a_e > 2.0 * radius * (1.0 + _DIAMETER_ROUNDING)
+    if over.any():
+        i = int(np.flatnonzero(over)[0])
+        raise RuntimeError(f"stock engagement: a_e {a_e[i] * 1e3:.6f} mm exceeds the tool diameter "
+                           f"{2e3 * radius:.6f} mm at sample {i}: a bug in the engaged arc")
+    np.minimum(a_e, 2.0 * radius, out=a_e)
+    thin = (mode != AIR) & ((a_e < _MIN_A_E) | (a_p < _MIN_A_P))
     mode[thin], a_e[thin], a_p[thin], angle[thin] = AIR, 0.0, 0.0, 0.0
     active = mode != AIR
     radial, _ = radial_directions(axes, feed)
@@ -394,6 +398,7 @@ def stock_engagement(points: Any, tool_axis: Any, cutting: Any, tool_radius: flo
         engaged_angle=angle,
         feed_dir=np.where(active[:, None], feed, 0.0),
         plunge=plunge,
+        warnings=below_bottom_warnings(pts, cut, stock, radius, where, z_tol),
     )
 
 

@@ -328,6 +328,23 @@ def test_tilted_tool_is_rejected() -> None:
         stock_engagement(p, tilted, c, R, box())
     # Rapids may carry any axis; a tilt within VERTICAL_AXIS_TOL passes.
     stock_engagement(p, [0.0, 1e-4, 1.0], c, R, box())
+    # With the samples' source lines, the message names the line.
+    with pytest.raises(InputError, match=r"sample 1 \(part.nc:12\): the tool axis"):
+        stock_engagement(p, tilted, c, R, box(), where=lambda i: "part.nc:12")
+
+
+def test_stock_a_e_never_exceeds_the_diameter_and_a_p_is_positive() -> None:
+    """Every cutting sample of the 2.5-D model has 0 < a_e ≤ 2R and a_p > 0 (the guards)."""
+    p, c = path(((-0.01, 0.025, 0.03), False), ((-0.01, 0.025, -0.005), False),
+                ((0.11, 0.025, -0.005), True), ((0.11, 0.03, -0.008), True),
+                ((-0.01, 0.03, -0.008), True))
+    e = stock_engagement(p, Z_AXIS, c, R, box())
+    cut = e.mode != AIR
+    assert cut.sum() > 100
+    assert np.all(e.a_e[cut] > 0) and np.all(e.a_e <= 2 * R) and np.all(e.a_p[cut] > 0)
+    # Two runs in the stock, 5 and 8 mm below its bottom (the step-over beside it is outside).
+    assert np.all(e.a_p >= 0) and len(e.warnings) == 2
+    assert all("below the stock bottom" in w for w in e.warnings)
 
 
 @pytest.mark.parametrize(("make", "match"), [
