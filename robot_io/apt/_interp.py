@@ -12,7 +12,6 @@ are made once per move in :meth:`Run.build_moves`.
 
 from __future__ import annotations
 
-import math
 from collections import Counter
 from collections.abc import Callable, Collection
 from typing import TYPE_CHECKING, Any
@@ -182,9 +181,10 @@ class Run:
         """Field ``f`` (index ``idx``) as a finite float, or a located error."""
         if len(f) <= rc.MAX_NUMBER_CHARS and rc.NUMBER.fullmatch(f):
             v = float(f)
-            if math.isfinite(v):
+            if -rc.MAX_NUMBER_VALUE <= v <= rc.MAX_NUMBER_VALUE:
                 return v
-            reason = f"number {rc.short(f)!r} is out of range"
+            reason = (f"number {rc.short(f)!r} is out of range (|value| <= "
+                      f"{rc.MAX_NUMBER_VALUE:g}): check for a missing decimal point or separator")
         elif not f:
             reason = "missing number (empty field)"
         elif len(f) > rc.MAX_NUMBER_CHARS:
@@ -203,9 +203,8 @@ class Run:
             parts = args.split(",")
             if len(parts) in counts and max(map(len, parts)) <= rc.MAX_NUMBER_CHARS:
                 vals = [float(f) for f in parts]
-                # without an exponent, <= MAX_NUMBER_CHARS digits are always finite
-                if ("e" not in args and "E" not in args) or all(map(math.isfinite, vals)):
-                    return vals
+                if -rc.MAX_NUMBER_VALUE <= min(vals) and max(vals) <= rc.MAX_NUMBER_VALUE:
+                    return vals   # (NUMBER never matches nan, so min and max are exact)
         fields = self.fields(rec)
         vals = [self.number(rec, f, i) for i, f in enumerate(fields)]
         if len(vals) not in counts:

@@ -27,6 +27,7 @@ __all__ = [
     "MAX_ARC_TURNS",
     "MAX_LISTING_HEADER_LINES",
     "MAX_NUMBER_CHARS",
+    "MAX_NUMBER_VALUE",
     "MAX_RECORD_FIELDS",
     "MAX_SPLINE_MOVES",
     "MAX_WARNINGS_PER_CATEGORY",
@@ -59,6 +60,11 @@ INCH = 0.0254   #: one inch [m]
 MAX_RECORD_FIELDS = 64
 #: A number longer than this (characters) is rejected before conversion (CAM writes ~12).
 MAX_NUMBER_CHARS = 40
+#: Largest magnitude of any number of a record [program units: mm or inch, mm/min, rev/min …];
+#: beyond it the number is garbage (a km-sized move in mm) and would overflow the geometry
+#: (a 1e308 coordinate made ``length_m`` infinite). The same limit as the G-code reader's
+#: ``robot_io.gcode.reader.MAX_WORD_VALUE`` and the KRL reader's ``MAX_KRL_VALUE``.
+MAX_NUMBER_VALUE = 1e9
 #: i,j,k whose norm differs from 1 by more than this [-] is warned about (CAM writes 6–7 digits,
 #: so rounding alone stays below 1e-5); it is normalised either way.
 TOOL_AXIS_NORM_TOL = 1e-3

@@ -17,6 +17,9 @@ Conventions (read this before trusting a number)
 ------------------------------------------------
 * SI inside: positions [m], feeds [m/s]. ``UNITS/MM``, ``UNIT/MM``, ``UNITS/INCHES`` (also ``INCH``,
   ``IN``) set the length unit; before the first of them ``default_units`` applies, with a warning.
+* Every number of a record is a plain decimal of at most :data:`MAX_NUMBER_CHARS` characters and
+  at most :data:`MAX_NUMBER_VALUE` in size (as in the G-code and KRL readers); a larger one is an
+  error (strict) or its record is skipped (lenient).
 * ``GOTO/x,y,z`` or ``GOTO/x,y,z,i,j,k``: i,j,k is the tool axis, a unit vector from the tool tip
   towards the spindle (normalised; warned about when its norm is off by more than
   :data:`TOOL_AXIS_NORM_TOL`). The tool axis is modal: a ``GOTO`` without i,j,k keeps the last one
@@ -157,6 +160,7 @@ from robot_io.apt._records import (
     INCH,
     MAX_ARC_TURNS,
     MAX_NUMBER_CHARS,
+    MAX_NUMBER_VALUE,
     MAX_RECORD_FIELDS,
     MAX_SPLINE_MOVES,
     MAX_WARNINGS_PER_CATEGORY,
@@ -182,6 +186,7 @@ __all__ = [
     "INCH",
     "MAX_ARC_TURNS",
     "MAX_NUMBER_CHARS",
+    "MAX_NUMBER_VALUE",
     "MAX_RECORD_FIELDS",
     "MAX_SPLINE_MOVES",
     "MAX_WARNINGS_PER_CATEGORY",

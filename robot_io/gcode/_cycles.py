@@ -73,12 +73,19 @@ def canned_cycle(run: _Run, code: int, col: int, words: dict) -> None:
     reps = 1
     if "L" in words:
         lv = words["L"][0]
-        reps = int(lv) if lv == int(lv) and 1 <= lv <= 10000 else 0
+        reps = int(lv) if lv == int(lv) and 1 <= lv <= W.MAX_CYCLE_REPEAT else 0
     if r_abs is None or z_abs is None or reps == 0:
         run.problem(col, "canned_cycle", f"{name} needs R (retract plane), Z (bottom) and "
-                    f"an integer L in 1…10000 if any; add them, or {W.fix_hint()}",
+                    f"an integer L in 1…{W.MAX_CYCLE_REPEAT} if any; add them, or "
+                    f"{W.fix_hint()}", skip="canned_cycle")
+        return
+    if run.cycle_repeats + reps - 1 > W.MAX_CYCLE_REPEATS:
+        run.problem(col, "canned_cycle", f"{name} L{reps} makes the L repeats of the program "
+                    f"more than {W.MAX_CYCLE_REPEATS:,} (MAX_CYCLE_REPEATS) in all; program the "
+                    f"holes as moves or split the program, or {W.fix_hint()}",
                     skip="canned_cycle")
         return
+    run.cycle_repeats += reps - 1
     st.cycle_r, st.cycle_z = r_abs, z_abs
     clear = r_abs if st.retract_r_plane else max(z0, r_abs)
     expand = code in W.EXPANDED_CYCLES

@@ -112,6 +112,7 @@ class _Run:
         self.started = False                     # a block has been read (O number or not)
         self.lines: list[str] = []               # the program, for O-word flow control
         self.flow: _oword.Flow | None = None     # its O-lines and state, from the first one
+        self.cycle_repeats = 0                   # canned-cycle repeats beyond each first (L)
 
     # ------------------------------------------------------------------ problems and warnings
     def warn(self, col: int, category: str, message: str, line: int | None = None) -> None:

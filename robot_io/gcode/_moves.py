@@ -13,7 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from robot_io.toolpath import MoveList
+from robot_io.gcode import _words as W
+from robot_io.toolpath import MoveList, ToolpathError
 
 __all__ = ["KIND_INDEX", "START_GIVEN", "START_PREVIOUS", "START_UNKNOWN", "MoveStore"]
 
@@ -32,6 +33,7 @@ class MoveStore:
     def __init__(self, file: str) -> None:
         self.file = file
         self.count = 0
+        self.limit = W.MAX_MOVES   # read once per reading (and patched lower by tests)
         self.chunks: list[tuple[np.ndarray, ...]] = []
         self.sparse: dict[int, dict[str, Any]] = {}
         self._new_lists()
@@ -52,6 +54,8 @@ class MoveStore:
             tool: int | None, sparse: dict[str, Any] | None) -> None:
         """One move: motion ``code`` key, source line/column, end ``tip`` [m], a ``START_*``
         flag, feed [m/s], duration [s], spindle [rev/min], tool, and its rare fields."""
+        if self.count >= self.limit:
+            self.refuse(line, col)
         if sparse:
             self.sparse[self.count] = sparse
         self.count += 1
@@ -74,6 +78,9 @@ class MoveStore:
         k = len(tips)
         if not k:
             return
+        if self.count + k > self.limit:
+            over = self.limit - self.count
+            self.refuse(int(lines[over]), int(cols[over]))
         self._flush()
         starts = np.full(k, START_PREVIOUS, dtype=np.int8)
         starts[0] = first_start
@@ -82,6 +89,13 @@ class MoveStore:
             np.full(k, _NAN if spindle is None else spindle),
             np.full(k, -1 if tool is None else tool, dtype=np.int64)))
         self.count += k
+
+    def refuse(self, line: int, col: int) -> None:
+        """Raise the :class:`ToolpathError` of the move past ``MAX_MOVES`` (in lenient reading
+        too: a limit, not a problem to skip)."""
+        raise ToolpathError(self.file, line, col, f"the program makes more than {self.limit:,} "
+                            "moves (MAX_MOVES), too many to plan in memory: split it into "
+                            "smaller programs, or check the loops and L repeats that multiply it")
 
     def _flush(self) -> None:
         if not self.kinds:

@@ -25,6 +25,9 @@ __all__ = [
     "INCH",
     "LINUXCNC_SWITCHKINS_M",
     "MAX_ARC_TURNS",
+    "MAX_CYCLE_REPEAT",
+    "MAX_CYCLE_REPEATS",
+    "MAX_MOVES",
     "MAX_WARNINGS_PER_CATEGORY",
     "MAX_WORD_VALUE",
     "MM",
@@ -55,6 +58,17 @@ MAX_ARC_TURNS = 1000
 #: Largest magnitude of any word's number [program units]; beyond it the number is garbage
 #: (a km-sized move in mm, or a 1e300 that would overflow squares).
 MAX_WORD_VALUE = 1e9
+#: Largest ``L`` (repeat count) of one canned-cycle block.
+MAX_CYCLE_REPEAT = 10_000
+#: Repeats beyond each cycle block's first that ``L`` words may add in one reading, in all: every
+#: repeat makes up to four moves, so a 15-byte ``G81 … L10000`` line is 40,000 of them and 100
+#: such lines were 3 million moves from 2.7 kB (issue 22). A quarter million repeats (≤ 1 million
+#: moves, like the KRL reader's ``MAX_UNROLLED_MOVES``) is more holes than any drilling job.
+MAX_CYCLE_REPEATS = 250_000
+#: Most moves one reading makes, whatever made them (plain lines, O-word loops and calls, cycle
+#: repeats): about 240 bytes a move in the reader alone (2.4 GB here) and more in the planner;
+#: a longer program is to be split.
+MAX_MOVES = 10_000_000
 #: Warnings kept per category; further ones are only counted (``meta["warning_counts"]``).
 MAX_WARNINGS_PER_CATEGORY = 50
 

@@ -36,7 +36,8 @@ Conventions (read this before trusting a number)
   ``unknown_start_moves``, ``block_delete_lines``, ``dwell_s``, ``warning_counts`` (all warnings
   by category, also those beyond ``MAX_WARNINGS_PER_CATEGORY``), ``lines`` and ``encoding``.
 * Canned cycles: G81 and G82 are expanded into rapid/feed moves (G98 = back to the initial level,
-  the default; G99 = back to R; preliminary rapid to R when below it; ``L`` repeats in G91).
+  the default; G99 = back to R; preliminary rapid to R when below it; ``L`` repeats in G91, at
+  most ``MAX_CYCLE_REPEAT`` per block and ``MAX_CYCLE_REPEATS`` beyond each block's first in all).
   G73 and G83–G89 are *not* expanded: a counted warning ``canned_cycle_not_expanded`` (in strict
   mode too), and the position afterwards is where the cycle would have left the tool.
 * Cutter compensation G41/G42 is accepted with a warning: the path is read uncompensated.
@@ -55,6 +56,8 @@ Conventions (read this before trusting a number)
   ``MAX_LOOP_ITERATIONS`` rounds per loop. A call of a subroutine not in the file, a loop over
   its limit, a later bare O-number (a Fanuc subprogram) and ``M98``/``M99`` are refused
   (strict) or skipped with a counted warning ``o_word`` that says what the skipping may change.
+* A reading makes at most ``MAX_MOVES`` moves, whatever makes them (plain lines, loops, calls,
+  repeats); past it :class:`ToolpathError` names the line, in lenient reading too.
 * Comments do not nest: a ``(`` inside a comment with a later ``)`` (``(T1 (6MM) FLAT)``) is
   refused (strict) or read as one comment with a warning ``nested_comment`` (lenient). Messages
   quote the offending word, never the text of a comment.
@@ -113,6 +116,9 @@ from robot_io.gcode._words import (
     ARC_MIN_RADIUS,
     INCH,
     MAX_ARC_TURNS,
+    MAX_CYCLE_REPEAT,
+    MAX_CYCLE_REPEATS,
+    MAX_MOVES,
     MAX_WARNINGS_PER_CATEGORY,
     MAX_WORD_VALUE,
     MM,
@@ -134,8 +140,11 @@ __all__ = [
     "INCH",
     "MAX_ARC_TURNS",
     "MAX_CALL_DEPTH",
+    "MAX_CYCLE_REPEAT",
+    "MAX_CYCLE_REPEATS",
     "MAX_FLOW_STEPS",
     "MAX_LOOP_ITERATIONS",
+    "MAX_MOVES",
     "MAX_WARNINGS_PER_CATEGORY",
     "MAX_WORD_VALUE",
     "MM",

@@ -112,14 +112,22 @@ class Ref:
     text: str
 
 
-_NUM = r"[-+]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][-+]?[0-9]+)?"
+# Every pattern below matches each position of a line in one way only (possessive blanks, an
+# atomic literal body), so a line that finally fails costs time linear in its length: the old
+# separator ``[ \t]+|[ \t]*(?=[-+])`` matched the blank before a signed number two ways and a
+# failing LIN literal of n signed components backtracked 2**n times (issue 22).
+_BLANK = r"[ \t]*+"
+_NUM = r"[-+]?+(?:[0-9]++(?:\.[0-9]*+)?+|\.[0-9]++)(?:[eE][-+]?+[0-9]++)?+"
 _FIELD_NAME = r"(?:[XYZABCST]|E[1-6])"
-_SEP = r"(?:[ \t]+|[ \t]*(?=[-+]))"
+#: Between a component name and its value: blanks, or nothing before a sign (``X-1``).
+_SEP = r"(?:[ \t]++|(?=[-+]))"
 _FIELD = re.compile(rf"({_FIELD_NAME}){_SEP}({_NUM})", re.IGNORECASE)
+#: The components of a Cartesian literal, ``X 1.5, Y -2, ...`` (atomic: matched once, greedily).
+_BODY = (rf"(?>{_FIELD_NAME}{_SEP}{_NUM}"
+         rf"(?:{_BLANK},{_BLANK}{_FIELD_NAME}{_SEP}{_NUM})*+)")
 _FAST_MOTION = re.compile(
-    rf"[ \t]*(LIN|PTP)[ \t]*(\{{)[ \t]*(?:(?:E6POS|POS|FRAME)[ \t]*:[ \t]*)?"
-    rf"({_FIELD_NAME}{_SEP}{_NUM}(?:[ \t]*,[ \t]*{_FIELD_NAME}{_SEP}{_NUM})*)"
-    rf"[ \t]*\}}[ \t]*(C_DIS|C_PTP|C_VEL|C_ORI)?[ \t]*$", re.IGNORECASE)
+    rf"{_BLANK}(LIN|PTP){_BLANK}(\{{){_BLANK}(?:(?:E6POS|POS|FRAME){_BLANK}:{_BLANK})?"
+    rf"({_BODY}){_BLANK}\}}{_BLANK}(?:(C_DIS|C_PTP|C_VEL|C_ORI){_BLANK})?$", re.IGNORECASE)
 
 
 def fast_motion(code: str) -> tuple[str, dict[str, float], int, str | None] | None:
@@ -141,10 +149,9 @@ def fast_motion(code: str) -> tuple[str, dict[str, float], int, str | None] | No
 #: Position types whose ``DECL`` lines with a literal take the data fast path.
 _POS_TYPES = r"(?:E6POS|POS|FRAME)"
 _FAST_DATA = re.compile(
-    rf"[ \t]*(?:(DECL)[ \t]+(?:(GLOBAL)[ \t]+)?({_POS_TYPES})[ \t]+)?"
-    rf"([A-Za-z_][A-Za-z0-9_]*)[ \t]*(?:\[[ \t]*([0-9]+)[ \t]*\])?[ \t]*=[ \t]*(\{{)[ \t]*"
-    rf"(?:({_POS_TYPES})[ \t]*:[ \t]*)?"
-    rf"({_FIELD_NAME}{_SEP}{_NUM}(?:[ \t]*,[ \t]*{_FIELD_NAME}{_SEP}{_NUM})*)[ \t]*\}}[ \t]*$",
+    rf"{_BLANK}(?:(DECL)[ \t]++(?:(GLOBAL)[ \t]++)?({_POS_TYPES})[ \t]++)?"
+    rf"([A-Za-z_][A-Za-z0-9_]*+){_BLANK}(?:\[{_BLANK}([0-9]++){_BLANK}\]{_BLANK})?="
+    rf"{_BLANK}(\{{){_BLANK}(?:({_POS_TYPES}){_BLANK}:{_BLANK})?({_BODY}){_BLANK}\}}{_BLANK}$",
     re.IGNORECASE)
 #: Names that are keywords, never the variable of a data line.
 _KEYWORDS = frozenset({"DECL", "GLOBAL", "CONST", "DEF", "DEFDAT", "DEFFCT", "END", "ENDDAT",

@@ -5,10 +5,11 @@ pipelined requests split by ``body_len + 4``, at most ``max_clients`` clients (1
 (30 s), ``PING`` → ``PONG``, unknown variables answered with status 0 and no value, and a reply
 ``body_len`` that counts the 3 trailer bytes (the VB source) or not (the py_openshowvar README
 server), chosen by ``count_trailer``. Writing ``$OV_PRO`` (an integer 0..100) changes a simulated path
-speed (:class:`~robot_io.links._sim_peer.SimulatedPathSpeed`). Every request that does not follow the
-protocol is counted in :attr:`KvpSimServer.stats` ``malformed`` and answered with status 0 when its
-header could be read; a frame longer than :data:`~robot_io.links.kvp.MAX_BODY_BYTES` or cut off by the
-client's close cannot be resynchronised: it is counted and the connection closed.
+speed (:class:`~robot_io.links._sim_peer.SimulatedPathSpeed`); a new name is written into a table of at
+most :data:`MAX_VARIABLES` variables, past it the write fails (status 0). Every request that does not
+follow the protocol is counted in :attr:`KvpSimServer.stats` ``malformed`` and answered with status 0
+when its header could be read; a frame longer than :data:`~robot_io.links.kvp.MAX_BODY_BYTES` or cut
+off by the client's close cannot be resynchronised: it is counted and the connection closed.
 
 Binds 127.0.0.1 unless told otherwise; port 0 picks a free port (see :attr:`KvpSimServer.address`).
 """
@@ -33,12 +34,17 @@ from robot_io.links.kvp import (
     parse_request,
 )
 
-__all__ = ["KvpServerStats", "KvpSimServer"]
+__all__ = ["MAX_VARIABLES", "KvpServerStats", "KvpSimServer"]
 
 _log = logging.getLogger(__name__)
 
 #: Poll period of the server's sockets for the stop flag [s]; bounds the time ``stop()`` takes.
 _POLL_S = 0.05
+#: Most variables the simulated table holds: a write of a new name past it is refused with the
+#: protocol's failure reply (status 0), so a client writing ever new names cannot fill memory
+#: (each entry may be a 4 KiB value) or slow every look-up. The controller's own names and a
+#: test's fit many times over.
+MAX_VARIABLES = 1024
 
 _DEFAULT_VARIABLES = {
     OV_PRO: "100",
@@ -63,6 +69,7 @@ class KvpServerStats:
         unsupported: well-formed array requests (functions 2/3), answered with status 0.
         idle_closed: connections closed by the idle timeout.
         ov_pro_writes: accepted writes of ``$OV_PRO``.
+        table_full: writes of a new name refused because :data:`MAX_VARIABLES` were held.
     """
 
     connections: int = 0
@@ -73,6 +80,7 @@ class KvpServerStats:
     unsupported: int = 0
     idle_closed: int = 0
     ov_pro_writes: int = 0
+    table_full: int = 0
 
 
 class KvpSimServer(SimulatedPeer):
@@ -105,6 +113,9 @@ class KvpSimServer(SimulatedPeer):
         self.reply_delay_s = reply_delay_s
         self.variables: dict[str, str] = dict(_DEFAULT_VARIABLES if variables is None else variables)
         self.variables.setdefault(OV_PRO, "100")
+        if len(self.variables) > MAX_VARIABLES:
+            raise LinkError("kvp-sim", f"{len(self.variables)} variables given, at most "
+                                       f"{MAX_VARIABLES} (MAX_VARIABLES) are held")
         self.path = SimulatedPathSpeed(programmed_speed, tau, float(self.variables[OV_PRO]))
         self._lock = threading.Lock()
         self._stats = KvpServerStats()
@@ -283,9 +294,15 @@ class KvpSimServer(SimulatedPeer):
             if not 0 <= percent <= 100:
                 return None, False
             value = str(percent)
+        with self._lock:   # look up and insert at once: the bound holds with many clients
+            existing = next((k for k in self.variables if k.upper() == key), None)
+            full = existing is None and len(self.variables) >= MAX_VARIABLES
+            if not full:
+                self.variables[name if existing is None else existing] = value
+        if full:
+            self._count(table_full=1)
+            return None, False
+        if key == OV_PRO:
             self.path.set_override(percent)
             self._count(ov_pro_writes=1)
-        with self._lock:
-            existing = next((k for k in self.variables if k.upper() == key), name)
-            self.variables[existing] = value
         return value, True

@@ -13,7 +13,9 @@ Parsing treats every datagram as untrusted:
 - attribute and element names matched case-insensitively (``Type`` and ``TYPE`` both occur);
 - the ``<Dat TaskType="b">`` wrapper of older configurations accepted (its children are read as the
   root's);
-- ``IPOC`` must be an unsigned 64-bit decimal integer; its text is echoed exactly as received.
+- ``IPOC`` must be an unsigned 64-bit decimal integer; its text is echoed exactly as received;
+- an XML declaration naming an encoding that neither expat nor Python knows
+  (``encoding="UTF-1"``) is a malformed packet like any other.
 
 Any packet that fails is dropped (no reply) and counted as malformed. The first packet after the
 link (re)starts is dropped when shorter than 100 bytes (older RSI sends one short telegram first;
@@ -78,8 +80,10 @@ def _root(data: bytes, tag: str, max_bytes: int) -> tuple[dict[str, str], list[E
         root = safe_et.fromstring(data, forbid_dtd=True, forbid_entities=True, forbid_external=True)
     except DefusedXmlException as e:
         raise ProtocolError("rsi", f"refused XML feature: {type(e).__name__}", n) from None
-    except (ParseError, ValueError, UnicodeError) as e:
+    except (ParseError, ValueError) as e:   # UnicodeError is a ValueError
         raise ProtocolError("rsi", f"not well-formed XML: {e}", n) from None
+    except LookupError as e:   # expat hands a declared encoding it lacks to Python's codecs
+        raise ProtocolError("rsi", f"unknown XML encoding: {str(e)[:60]}", n) from None
     if root.tag.lower() != tag.lower():
         raise ProtocolError("rsi", f"root element <{root.tag[:40]}>, expected <{tag}>", n)
     body: list[Element] = []

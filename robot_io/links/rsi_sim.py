@@ -153,7 +153,12 @@ class RsiSimController(SimulatedPeer):
     # -- observation -------------------------------------------------------------------------------
     @property
     def status(self) -> str:
-        """``"idle"``, ``"running"``, ``"done"`` (max_cycles reached), ``"stopped"`` or ``"RSIBad"``."""
+        """``"idle"``, ``"running"``, ``"done"`` (max_cycles reached), ``"stopped"``, ``"RSIBad"``
+        or ``"error"`` (the thread ended on an unexpected error, logged; also when it ended
+        without saying why)."""
+        thread = self._thread
+        if self._status == "running" and thread is not None and not thread.is_alive():
+            return "error"
         return self._status
 
     def round_trips(self) -> list[float]:
@@ -225,10 +230,15 @@ class RsiSimController(SimulatedPeer):
     def _run(self) -> None:
         try:
             self._loop()
+            if self._status == "running":   # stopped by stop(): never seen as a dead "running"
+                self._status = "stopped"
         except OSError as e:
             if not self._stop.is_set():
                 _log.warning("rsi-sim stopped on socket error: %s", e)
                 self._status = "stopped"
+        except Exception:   # noqa: BLE001 - a dead thread must not leave the status "running"
+            _log.exception("rsi-sim: unexpected error, the controller stopped")
+            self._status = "error"
 
     def _loop(self) -> None:
         if self.short_first_packet:

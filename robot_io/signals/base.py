@@ -8,7 +8,8 @@ in :class:`SourceStats`; the supervisor decides what to do (hold, then a safe ov
 
 Timestamps are seconds on the source's own clock (the sender's clock for a UDP stream, the file's
 time column for a replay); they are carried through unchanged so a log can be lined up with the
-recording.
+recording. The one exception keeps the :class:`SignalChunk` promise of increasing times: a UDP
+sender that restarts with its clock gone back is re-based (see :mod:`robot_io.signals.udp`).
 """
 
 from __future__ import annotations
@@ -40,7 +41,8 @@ class SignalChunk:
     """Samples read in one call.
 
     Attributes:
-        t_s: sample timestamps [s], shape (n,), increasing, on the source's clock.
+        t_s: sample timestamps [s], shape (n,), strictly increasing within a chunk and from one
+            chunk of a source to the next, on the source's clock.
         values: sample values (force [N] or strain, in the source's unit), shape (n,), float64.
             Values are passed as received: non-finite or implausible ones are for the consumer to
             judge.
@@ -71,7 +73,12 @@ class SourceStats:
         out_of_order: packets dropped because they came after a later one.
         lost: packets never received (gaps in the sequence numbers).
         overflow: samples discarded because the consumer did not keep up.
-        resyncs: times the sender was taken to have restarted (its sequence jumped far back).
+        resyncs: times the sender was taken to have restarted (its sequence jumped far back or
+            far ahead).
+        rebases: restarts after which the timestamps were shifted to keep them increasing (the
+            sender's clock had gone back).
+        backward_samples: samples dropped because their timestamp was not after the previous
+            sample's.
         last_error: text of the last problem, ``""`` if none.
     """
 
@@ -82,6 +89,8 @@ class SourceStats:
     lost: int = 0
     overflow: int = 0
     resyncs: int = 0
+    rebases: int = 0
+    backward_samples: int = 0
     last_error: str = ""
 
     def as_dict(self) -> dict[str, int | str]:

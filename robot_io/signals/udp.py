@@ -14,9 +14,17 @@ Sample ``i`` has timestamp ``t0_s + i / fs_hz``. A datagram whose size differs f
 ``22 + 4 * count``, with a wrong magic, a count of 0 or over :data:`MAX_SAMPLES`, or a non-finite or
 non-positive ``fs_hz`` or ``t0_s`` is *malformed*: dropped and counted. Sequence numbers are compared
 modulo 2**32: a datagram older than the newest seen is *out of order* (dropped, counted); a jump
-forward counts the skipped numbers as *lost*; one more than :data:`REORDER_WINDOW` behind means the
-sender restarted: the stream resynchronises on it (counted in ``resyncs``). Sample values are passed
-on as received (a NaN is the consumer's to judge).
+forward of at most :data:`MAX_LOSS_GAP` counts the skipped numbers as *lost*; one more than
+:data:`REORDER_WINDOW` behind, or more than :data:`MAX_LOSS_GAP` ahead, means the sender restarted:
+the stream resynchronises on it (counted in ``resyncs``, nothing counted as lost). Sample values are
+passed on as received (a NaN is the consumer's to judge).
+
+Timestamps are the sender's and increase strictly over the whole stream, as :class:`SignalChunk`
+promises. A restarted sender whose clock starts again at or before the last sample handed on is
+*re-based*: its timestamps are shifted so that its first sample comes one sample period after the
+last one (counted in ``rebases``; the shift stays until the next restart). Without a restart,
+samples whose timestamp is not after the previous sample's (a repeated or overlapping block) are
+dropped and counted in ``backward_samples``.
 
 The receiver binds 127.0.0.1 unless told otherwise, never blocks (a read drains at most
 :data:`MAX_DATAGRAMS_PER_READ` datagrams) and never raises.
@@ -37,6 +45,7 @@ from robot_io.signals.base import Backlog, SignalChunk, SourceStats, empty_chunk
 __all__ = [
     "HEADER",
     "MAGIC",
+    "MAX_LOSS_GAP",
     "MAX_SAMPLES",
     "REORDER_WINDOW",
     "UdpSignalSender",
@@ -54,6 +63,11 @@ MAX_DATAGRAMS_PER_READ = 256
 #: A datagram at most this many sequence numbers behind the newest is late (dropped); further
 #: behind, the sender is taken to have restarted and the stream resynchronises on it.
 REORDER_WINDOW = 64
+#: A datagram more than this many sequence numbers ahead of the expected one means the sender
+#: restarted (or the numbers are garbage), not that the datagrams between were lost: at a brisk
+#: 1,000 datagrams/s it is over a minute of silence, which the source reports as ``no_data`` long
+#: before; counted as loss, one such datagram added up to 2**31 to ``lost``.
+MAX_LOSS_GAP = 65_536
 #: Samples held for a consumer that reads less than arrives; older ones are dropped and counted.
 BACKLOG_SAMPLES = 65536
 _SEQ_MOD = 1 << 32
@@ -102,6 +116,8 @@ class UdpSignalSource:
         self._clock = clock or time.monotonic
         self._last_rx = self._clock()
         self._next_seq: int | None = None
+        self._last_t = -math.inf   # timestamp of the last sample kept [s]
+        self._offset = 0.0         # shift of the sender's clock since its last restart [s]
         self._backlog = Backlog(BACKLOG_SAMPLES)
         self._closed = False
 
@@ -112,23 +128,44 @@ class UdpSignalSource:
             self.stats.last_error = f"malformed datagram ({len(data)} bytes)"
             return
         seq, t0, fs, values = parsed
+        restarted = False
         if self._next_seq is not None:
             ahead = (seq - self._next_seq) % _SEQ_MOD
             behind = (self._next_seq - seq) % _SEQ_MOD
             if ahead >= _SEQ_MOD // 2 and behind <= REORDER_WINDOW:
                 self.stats.out_of_order += 1
                 return
-            if ahead >= _SEQ_MOD // 2:  # far behind: the sender restarted its sequence
+            if ahead > MAX_LOSS_GAP:  # far behind or far ahead: the sender restarted its sequence
+                restarted = True
                 self.stats.resyncs += 1
-                self.stats.last_error = f"sender restarted (seq {seq} after {self._next_seq - 1})"
+                self.stats.last_error = (f"sender restarted (seq {seq} after "
+                                         f"{(self._next_seq - 1) % _SEQ_MOD})")
             else:
                 self.stats.lost += ahead
         self._next_seq = (seq + 1) % _SEQ_MOD
         self.stats.packets += 1
         self.fs_hz = float(fs)
         self._last_rx = self._clock()
-        t = t0 + np.arange(values.shape[0]) / fs
-        self.stats.overflow += self._backlog.push(t, values)
+        t = self._times(t0, fs, values.shape[0], restarted)
+        keep = t > np.maximum.accumulate(np.concatenate(([self._last_t], t[:-1])))
+        if not keep.all():
+            self.stats.backward_samples += int(keep.size - np.count_nonzero(keep))
+            t, values = t[keep], values[keep]
+        if t.size:
+            self._last_t = float(t[-1])
+            self.stats.overflow += self._backlog.push(t, values)
+
+    def _times(self, t0: float, fs: float, n: int, restarted: bool) -> np.ndarray:
+        """Timestamps [s] of a datagram's ``n`` samples; after a restart whose clock went back to
+        or before the last sample, re-based to go on one period after it."""
+        if restarted:
+            self._offset = 0.0
+            if t0 <= self._last_t:
+                self._offset = self._last_t + 1.0 / fs - t0
+                self.stats.rebases += 1
+        t = (t0 + self._offset) + np.arange(n) / fs
+        t[~np.isfinite(t)] = -math.inf   # an overflowing end is dropped as not increasing
+        return t
 
     def read(self, max_samples: int) -> SignalChunk:
         if self._closed:
