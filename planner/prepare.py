@@ -157,10 +157,17 @@ def inspect_job(prep: Prepared) -> dict[str, Any]:
         return {"min": float(v.min() * 1e3), "mean": float(v.mean() * 1e3),
                 "max": float(v.max() * 1e3)}
 
-    q = np.degrees(kin.q)
+    # joint ranges over the samples reached (a failed solve's best attempt is no pose)
+    q = np.degrees(kin.q[kin.reachable]) if np.any(kin.reachable) else np.degrees(kin.q[:0])
+    ranges = ({name: [float(q[:, i].min()), float(q[:, i].max())]
+               for i, name in enumerate(kin.joint_names)} if q.size else {})
+    from robot_io.diagnostics import group_warnings
+
     return {
         "job": prep.job.job.name,
-        "toolpaths": [summarize(tp) for tp in prep.toolpaths],
+        "toolpaths": [{**summarize(tp), "warning_groups": [g.as_json() for g in
+                                                           group_warnings([tp])]}
+                      for tp in prep.toolpaths],
         "samples": len(path),
         "path_length_m": float(path.s[-1]),
         "reachability": {
@@ -168,13 +175,14 @@ def inspect_job(prep: Prepared) -> dict[str, Any]:
             "unreachable_samples": int(np.sum(~kin.reachable)),
             "problems": kin.problems,
             "configuration_jumps": kin.jumps.tolist(),
-            "joint_range_deg": {name: [float(q[:, i].min()), float(q[:, i].max())]
-                                for i, name in enumerate(kin.joint_names)},
+            "joint_range_deg": ranges,
         },
         "engagement": {
             "source": prep.job.engagement.source,
             "modes": modes,
             "ae_mm": stats(e.a_e),
             "ap_mm": stats(e.a_p),
+            "warnings": list(e.warnings),
         },
+        "warnings": [str(w) for w in prep.warnings],
     }

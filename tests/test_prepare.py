@@ -91,3 +91,22 @@ def test_cli_inspect_missing_file_is_one_line(capsys, tmp_path):
     assert main(["inspect", str(tmp_path / "nope.nc")]) == 2
     err = capsys.readouterr().err
     assert "not found" in err and ":0:0" not in err and len(err.strip().splitlines()) == 1
+
+
+def test_cli_inspect_of_a_job_that_cannot_be_reached_exits_2(capsys, tmp_path):
+    """A job out of reach is a job that cannot be cut: inspect says so and exits 2, like plan,
+    and lists joint ranges only of the samples reached (issue 22)."""
+    text = Path(DEMO).read_text(encoding="utf-8")
+    text = text.replace("base_mm = [1500.0, -60.0, 400.0]", "base_mm = [2600.0, -60.0, 400.0]")
+    text = text.replace('toolpath = ["bracket_contour.nc"]',
+                        f'toolpath = ["{(Path(DEMO).parent / "bracket_contour.nc").as_posix()}"]')
+    job = tmp_path / "far.toml"
+    job.write_text(text, encoding="utf-8")
+    assert main(["inspect", str(job)]) == 2
+    out = capsys.readouterr()
+    assert "reachable     NO" in out.out
+    err = out.err.strip().splitlines()
+    assert len(err) == 1 and "cannot be reached" in err[0], err
+    assert main(["inspect", str(job), "--json"]) == 2
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["reachability"]["unreachable_samples"] > 0

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 from planner.cli._common import add_reader_flags, reader_options
@@ -92,8 +93,16 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
                 if e[key]:
                     print(f"  {key[:2]} {e[key]['min']:.3f} / {e[key]['mean']:.3f} / "
                           f"{e[key]['max']:.3f} mm (min/mean/max)")
+            for w in e["warnings"] + out["warnings"]:
+                print(f"  warning: {w}")
             if args.plot:
                 print(f"plot: {args.plot}")
+        if not out["reachability"]["all_reachable"]:
+            r = out["reachability"]
+            first = r["problems"][0] if r["problems"] else ""
+            print(f"cctmill inspect: error: {r['unreachable_samples']} samples of job "
+                  f"{out['job']} cannot be reached; {first}".rstrip("; "), file=sys.stderr)
+            return 2
         return 0
     from robot_io.diagnostics import group_warnings
     from robot_io.options import speaking

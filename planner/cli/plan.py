@@ -13,6 +13,10 @@ from planner.plan import METHODS, PlanResult
 
 __all__ = ["register", "section_table"]
 
+#: Files of one kind listed one by one; more are summarised (a paged KRL program has dozens).
+_LISTED_FILES = 4
+
+
 def section_table(res: PlanResult, limit: int = 40) -> str:
     """The sections as a readable table (the first ``limit`` rows, then a count)."""
     head = (f"{'#':>4} {'kind':5} {'s [m]':>15} {'feed mm/s':>9} {'binds':11} {'F max N':>8} "
@@ -78,8 +82,12 @@ def _cmd_plan(args: argparse.Namespace) -> int:
               f"({100 * (res.cut_time / res.cut_time_bound - 1):.1f} % above it)")
     print("wrote:")
     for k, v in written.items():
-        for p in v if isinstance(v, list) else [v]:
-            print(f"  {k:22} {p}")
+        files = v if isinstance(v, list) else [v]
+        if len(files) > _LISTED_FILES:
+            print(f"  {k:22} {len(files)} files: {files[0]}, {files[1]} … {files[-1]}")
+        else:
+            for p in files:
+                print(f"  {k:22} {p}")
     return 0
 
 
