@@ -8,8 +8,10 @@ supervisor, the simulated cut, the demo — takes a :class:`Plan`. The file cont
 ``version`` 1) holds the job's identity, ``base_frame``/``tool_frame`` (``xyz_mm``, ``abc_deg``),
 ``constraints`` (:class:`planner.limits.Limits`), the ``sections`` (one object per
 :class:`PlanSection`, units in the key names), ``cycle_time_s``, ``process_time_s``, ``solver``,
-``wall_times_s``, ``summary`` and ``samples_file``; ``samples.npz`` one array per
-:data:`SAMPLE_ARRAYS` entry (and the optional ones of :data:`SAMPLE_EXTRA`).
+``wall_times_s``, ``summary``, ``import_warnings``, ``warnings`` and ``samples_file``;
+``samples.npz`` one array per :data:`SAMPLE_ARRAYS` entry (and the optional ones of
+:data:`SAMPLE_EXTRA`). :func:`load_plan` checks the document against :mod:`planner.plan_schema`
+(types, ranges, the partition of the samples) before it converts anything.
 """
 
 from __future__ import annotations
@@ -17,6 +19,8 @@ from __future__ import annotations
 import json
 import math
 import os
+import zipfile
+import zlib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -59,14 +63,24 @@ KINDS = ("cut", "air", "rapid")
 #: and degrees; 1e-9 mm / 1e-9° keeps what the user wrote and drops the float noise of mm → m → mm.
 FRAME_DECIMALS = 9
 
-_REQUIRED = ("format", "version", "method", "sections", "cycle_time_s", "constraints", "solver",
-             "samples_file", "base_frame", "tool_frame")
-_SECTION_REQUIRED = ("index", "kind", "sample_start", "sample_stop", "s_start_m", "s_end_m",
-                     "feed_mm_s", "binding")
+#: numpy dtype kinds a samples array may have: bool, integers, floats.
+_NUMERIC = "biuf"
 
 
 class PlanFileError(DataFileError):
-    """A plan file is missing, malformed, or not a cctmill plan (``path``: the file)."""
+    """A plan file is missing, malformed, or not a cctmill plan.
+
+    Attributes:
+        path: the file.
+        where: the JSON path of the bad value (``sections[3].feed_mm_s``), or None.
+    """
+
+    #: The fix for a plan file that is not as cctmill wrote it.
+    REPLAN = "fix it or plan the job again (cctmill plan JOB.toml -o DIR)"
+
+    def __init__(self, path: str, message: str, where: str | None = None) -> None:
+        super().__init__(path, message)
+        self.where = where
 
 
 def _opt(v: Any) -> float | None:
@@ -117,12 +131,17 @@ class SectionCharacteristic:
                 raise ValueError(f"characteristic {key} has shape {a.shape}, expected ({k},)")
             return a
 
-        return cls(sample=int(d.get("sample", -1)), feeds=feeds, margin=arr("margin_N_per_m"),
-                   gamma=np.radians(arr("gamma_deg")) if "gamma_deg" in d else np.full(k, np.nan),
+        def has(key: str) -> bool:
+            return d.get(key) is not None
+
+        sample = d.get("sample")
+        return cls(sample=-1 if sample is None else int(sample), feeds=feeds,
+                   margin=arr("margin_N_per_m"),
+                   gamma=np.radians(arr("gamma_deg")) if has("gamma_deg") else np.full(k, np.nan),
                    force=arr("force_N"),
-                   stable=arr("stable", dtype=bool) if "stable" in d else np.ones(k, bool),
-                   deflection=arr("deflection_mm", 1e-3) if "deflection_mm" in d else None,
-                   ok=arr("ok", dtype=bool) if "ok" in d else None)
+                   stable=arr("stable", dtype=bool) if has("stable") else np.ones(k, bool),
+                   deflection=arr("deflection_mm", 1e-3) if has("deflection_mm") else None,
+                   ok=arr("ok", dtype=bool) if has("ok") else None)
 
 
 @dataclass(frozen=True)
@@ -387,7 +406,9 @@ class Plan:
     @classmethod
     def from_document(cls, doc: dict[str, Any], arrays: dict[str, np.ndarray],
                       path: Path | None = None) -> Plan:
-        """A plan from its plan.json document and samples arrays (units in the names).
+        """A plan from its plan.json document and samples arrays (units in the names); the
+        document as :func:`planner.plan_schema.validate_document` passed it (:func:`load_plan`
+        checks it first).
 
         Raises:
             PlanFileError: a section or frame is malformed.
@@ -429,47 +450,73 @@ def _resolve(path: str | os.PathLike) -> Path:
 def load_plan(path: str | os.PathLike) -> Plan:
     """Read ``plan.json`` (or a folder holding one) and its samples table into a :class:`Plan`.
 
+    The document is checked against :mod:`planner.plan_schema` (types, ranges, the partition of
+    the samples) before anything is converted.
+
     Raises:
-        PlanFileError: missing file, bad JSON, wrong format, missing keys or arrays.
+        PlanFileError: missing file, bad JSON, wrong format or version, a value of the wrong type
+            or out of range (the message names its JSON path), missing or malformed arrays.
     """
+    from planner.plan_schema import MAX_DEPTH, check_sample_count, json_depth, validate_document
+
     p = _resolve(path)
     if not p.is_file():
         raise PlanFileError(str(p), "no such plan; run `cctmill plan JOB.toml -o DIR` first")
     try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise PlanFileError(str(p), f"not readable JSON ({e})") from e
+        text = p.read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise PlanFileError(str(p), f"not UTF-8 text (byte {e.start}); {PlanFileError.REPLAN}") from e
+    except OSError as e:
+        raise PlanFileError(str(p), f"cannot read ({e.strerror or e})") from e
+    if json_depth(text) > MAX_DEPTH:
+        raise PlanFileError(str(p), f"arrays and objects nest more than {MAX_DEPTH} deep; "
+                            f"{PlanFileError.REPLAN}")
+    try:
+        data = json.loads(text)
+    except RecursionError as e:
+        raise PlanFileError(str(p), f"nested too deep to read; {PlanFileError.REPLAN}") from e
+    except ValueError as e:       # JSONDecodeError, and integers of more than 4300 digits
+        raise PlanFileError(str(p), f"not readable JSON ({e}); {PlanFileError.REPLAN}") from e
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise PlanFileError(str(p), f"not a cctmill plan (format must be {FORMAT!r})")
-    if data.get("version") != VERSION:
-        raise PlanFileError(str(p), f"plan version {data.get('version')!r}; this cctmill reads "
-                            f"version {VERSION}: plan the job again")
-    missing = [k for k in _REQUIRED if k not in data]
-    if missing:
-        raise PlanFileError(str(p), f"missing keys {missing}")
-    if not isinstance(data["sections"], list) or not data["sections"]:
-        raise PlanFileError(str(p), "the plan has no sections")
-    for sec in data["sections"]:
-        gone = [k for k in _SECTION_REQUIRED if not isinstance(sec, dict) or k not in sec]
-        if gone:
-            raise PlanFileError(str(p), f"section {sec.get('index', '?') if isinstance(sec, dict) else '?'}"
-                                f" lacks {gone}")
-    sp = p.parent / data["samples_file"]
+    if data.get("version") != VERSION or isinstance(data.get("version"), bool):
+        raise PlanFileError(str(p), f"plan version {_short(data.get('version'))}; this cctmill "
+                            f"reads version {VERSION}: plan the job again")
+    doc = validate_document(data, file=str(p))
+    samples = _load_samples(p.parent / doc.samples_file)
+    check_sample_count(doc, samples["s_m"].shape[0], file=str(p))
+    return Plan.from_document(doc.model_dump(exclude_unset=True), samples, path=p)
+
+
+def _short(v: Any) -> str:
+    s = repr(v)
+    return s if len(s) <= 40 else s[:37] + "..."
+
+
+def _load_samples(sp: Path) -> dict[str, np.ndarray]:
+    """The arrays of ``samples.npz``, checked: every required array, numeric, of its shape."""
     try:
-        with np.load(sp, allow_pickle=False) as z:
-            samples = {k: z[k] for k in z.files}
-    except (OSError, ValueError) as e:
-        raise PlanFileError(str(sp), f"samples table not readable ({e})") from e
-    n = samples.get("s_m", np.zeros(0)).shape[0]
+        with open(sp, "rb") as f:        # ours to close, whatever np.load makes of the bytes
+            z = np.load(f, allow_pickle=False)
+            if not isinstance(z, np.lib.npyio.NpzFile):     # a plain .npy: one array, not a table
+                raise ValueError("one array, not a table of arrays")
+            with z:
+                samples = {k: z[k] for k in z.files}
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as e:
+        raise PlanFileError(str(sp), f"samples table not readable ({e}); {PlanFileError.REPLAN}") from e
+    s = samples.get("s_m")
+    n = s.shape[0] if s is not None and s.ndim >= 1 else 0
     for name, tail in SAMPLE_ARRAYS.items():
         a = samples.get(name)
         if a is None or a.shape != (n, *tail):
             raise PlanFileError(str(sp), f"array {name!r} missing or not of shape {(n, *tail)}")
+        if a.dtype.kind not in _NUMERIC:
+            raise PlanFileError(str(sp), f"array {name!r} holds {a.dtype} values, not numbers")
     for name, tail in SAMPLE_EXTRA.items():
         a = samples.get(name)
-        if a is not None and a.shape != (n, *tail):
+        if a is not None and (a.shape != (n, *tail) or a.dtype.kind not in _NUMERIC):
             samples.pop(name)        # an optional array of the wrong shape is not used
-    return Plan.from_document(data, samples, path=p)
+    return samples
 
 
 def _jsonable(v: Any) -> Any:

@@ -28,7 +28,7 @@ from planner.export import (
     export_plan,
     plan_to_krl,
 )
-from planner.plan_file import KINDS, SAMPLE_ARRAYS, load_plan, write_plan
+from planner.plan_file import KINDS, SAMPLE_ARRAYS, PlanFileError, load_plan, write_plan
 from robot_io.krl import KrlError
 from robot_io.krl.lint import lint_krl
 from robot_io.krl.reader import abc_to_matrix, read_krl
@@ -294,13 +294,18 @@ def test_nan_feed_names_the_section_and_writes_nothing(tmp_path) -> None:
     out = tmp_path / "krl"
     export_plan(plan, out)
     before = {p.name: p.read_bytes() for p in out.iterdir()}
+    loaded = load_plan(plan)
+    secs = loaded.sections[:-1] + (replace(loaded.sections[-1], feed=math.nan),)  # NaN in memory
+    with pytest.raises(KrlError, match="section 7 feed.*not a number"):
+        export_plan(replace(loaded, sections=secs), out)
+    assert {q.name: q.read_bytes() for q in out.iterdir()} == before
     doc = json.loads(plan.read_text(encoding="utf-8"))
-    doc["sections"][-1]["feed_mm_s"] = None                     # NaN in the last section
+    doc["sections"][-1]["feed_mm_s"] = None                     # null in the file: refused on load
     with np.load(plan.parent / "samples.npz") as z:
         arrays = {k: z[k] for k in z.files}
     write_plan(tmp_path / "plan", {k: v for k, v in doc.items()
                                    if k not in ("format", "version", "samples_file")}, arrays)
-    with pytest.raises(KrlError, match="section 7 feed.*not a number"):
+    with pytest.raises(PlanFileError, match=r"sections\[6\]\.feed_mm_s: .*got None"):
         export_plan(plan, out)
     assert {q.name: q.read_bytes() for q in out.iterdir()} == before
 

@@ -5,15 +5,19 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from dataclasses import fields, replace
 
 import numpy as np
 import pytest
 from _plans import ONE_SECTION, make_plan
 
+from planner.cli import main
 from planner.limits import Limits
 from planner.plan_file import (
+    FORMAT,
     SAMPLE_ARRAYS,
+    VERSION,
     Plan,
     PlanFileError,
     PlanSamples,
@@ -21,6 +25,14 @@ from planner.plan_file import (
     SectionCharacteristic,
     SolverRecord,
     load_plan,
+)
+from planner.plan_schema import (
+    CharacteristicDoc,
+    ConstraintsDoc,
+    PlanDocument,
+    SectionDoc,
+    json_depth,
+    validate_document,
 )
 
 #: A unit conversion on the way in and out may move a float by an ulp or two (mm → m → mm).
@@ -151,22 +163,286 @@ def test_a_synthetic_plan_with_few_keys_loads(tmp_path):
     assert plan.section_at(0.49).index == 0 and plan.section_at(9.0).index == 0
 
 
-@pytest.mark.parametrize("mutate,match", [
-    (lambda d: d.update(format="other"), "not a cctmill plan"),
-    (lambda d: d.update(version=99), "plan version 99"),
-    (lambda d: d.pop("sections"), "missing keys"),
-    (lambda d: d.update(sections=[]), "no sections"),
-    (lambda d: d["sections"][0].pop("feed_mm_s"), "lacks"),
-    (lambda d: d["sections"][0].update(sample_start="x"), "malformed"),
-    (lambda d: d.update(base_frame={"xyz_mm": [1, 2]}), "base_frame"),
-])
-def test_malformed_plans_are_refused_with_the_reason(tmp_path, mutate, match):
-    path = _plan().save(tmp_path).path
+@pytest.fixture(scope="module")
+def demo_plan_dir(demo_prepared, tmp_path_factory):
+    """The demo job planned with constant feeds, saved: a real plan.json with every key."""
+    from planner.plan import plan_prepared
+
+    folder = tmp_path_factory.mktemp("demo_plan")
+    Plan.from_result(plan_prepared(demo_prepared, "constant")).save(folder)
+    return folder
+
+
+def _raw(key: str, text: str):
+    """A mutation that puts raw JSON text (not expressible as a Python value) at ``key``."""
+    def mutate(d: dict) -> None:
+        d[key] = _RAW
+    mutate.raw = text
+    return mutate
+
+
+_RAW = "@@raw@@"
+
+
+def _whole(change):
+    """A mutation of the whole JSON text."""
+    def mutate(d: dict) -> None:
+        pass
+    mutate.text = change
+    return mutate
+
+
+def _set(*path_value):
+    """``_set("sections", 3, "feed_mm_s", "fast")``: a mutation setting one value."""
+    *path, value = path_value
+
+    def mutate(d: dict) -> None:
+        for key in path[:-1]:
+            d = d[key]
+        d[path[-1]] = value
+    return mutate
+
+
+def _shift_start(d: dict) -> None:
+    d["sections"][3]["sample_start"] += 1
+
+
+def _stop_at_start(d: dict) -> None:
+    d["sections"][3]["sample_stop"] = d["sections"][3]["sample_start"]
+
+
+def _first_cut(d: dict) -> dict:
+    return next(s for s in d["sections"] if s.get("characteristic"))
+
+
+def _short_margin(d: dict) -> None:
+    _first_cut(d)["characteristic"]["margin_N_per_m"].pop()
+
+
+def _s_end_below_start(d: dict) -> None:
+    d["sections"][3]["s_end_m"] = d["sections"][3]["s_start_m"] - 0.01
+
+
+#: One corruption a line: id, mutation of the demo plan.json, what the message says (after the
+#: file name). Issue 22 finding 6: each of these was a traceback or was accepted.
+CORRUPTIONS = [
+    ("section_int", _set("sections", 3, 5), r"sections\[3\]: must be an object, got 5"),
+    ("section_str", _set("sections", 3, "cut"), r"sections\[3\]: must be an object, got 'cut'"),
+    ("feed_str", _set("sections", 3, "feed_mm_s", "fast"),
+     r"sections\[3\]\.feed_mm_s: must be a positive finite number up to 10000 mm/s, got 'fast'"),
+    ("feed_1e308", _set("sections", 3, "feed_mm_s", 1e308),
+     r"sections\[3\]\.feed_mm_s: must be a positive finite number .*got 1e\+308"),
+    ("feed_negative", _set("sections", 3, "feed_mm_s", -5.0), r"feed_mm_s: .*got -5\.0"),
+    ("feed_true", _set("sections", 3, "feed_mm_s", True), r"feed_mm_s: .*got True"),
+    ("feed_nan_token", _set("sections", 3, "feed_mm_s", math.nan), r"feed_mm_s: .*got nan"),
+    ("feed_null_in_cut", _set("sections", 3, "feed_mm_s", None),
+     r"sections\[3\]\.feed_mm_s: .*null only in a rapid section"),
+    ("solver_number", _set("solver", 3.5), r"solver: must be an object, got 3\.5"),
+    ("solver_success_str", _set("solver", "success", "no"),
+     r"solver\.success: must be true or false, got 'no'"),
+    ("sample_stop_null", _set("sections", 3, "sample_stop", None),
+     r"sections\[3\]\.sample_stop: must be an integer ≥ 0, got None"),
+    ("sample_start_float", _set("sections", 3, "sample_start", 43.0),
+     r"sections\[3\]\.sample_start: must be an integer ≥ 0, got 43\.0"),
+    ("cycle_time_list", _set("cycle_time_s", [1]), r"cycle_time_s: must be a finite number ≥ 0, got \[1\]"),
+    ("constraints_number", _set("constraints", -1), r"constraints: must be an object, got -1"),
+    ("constraint_str", _set("constraints", "force_max_N", "300"),
+     r"constraints\.force_max_N: must be a positive finite number, got '300'"),
+    ("feed_min_above_max", _set("constraints", "feed_min_mm_s", 50.0),
+     r"constraints\.feed_min_mm_s: must not exceed feed_max_mm_s 40, got 50"),
+    ("nested_1100", _raw("summary", "[" * 1100 + "]" * 1100), r"nest more than 32 deep"),
+    ("sections_object", _set("sections", {"a": 1}), r"sections: must be a list"),
+    ("sections_empty", _set("sections", []), r"sections: must hold at least one section"),
+    ("sections_missing", lambda d: d.pop("sections"), r"sections: missing"),
+    ("section_key_missing", lambda d: d["sections"][3].pop("feed_mm_s"),
+     r"sections\[3\]\.feed_mm_s: missing"),
+    ("section_key_typo", lambda d: d["sections"][3].update(feed_mms=5.0),
+     r"sections\[3\]\.feed_mms: unknown key; did you mean 'feed_mm_s'\?"),
+    ("index_str", _set("sections", 3, "index", "3"), r"sections\[3\]\.index: must be an integer"),
+    ("index_out_of_order", _set("sections", 3, "index", 4),
+     r"sections\[3\]\.index: must be 3 \(sections are numbered in path order\), got 4"),
+    ("kind_unknown", _set("sections", 3, "kind", "milling"),
+     r"sections\[3\]\.kind: must be 'cut', 'air' or 'rapid', got 'milling'"),
+    ("samples_gap", _shift_start,
+     r"sections\[3\]\.sample_start: must be 43, where sections\[2\] stops .*got 44"),
+    ("section_empty_range", _stop_at_start, r"sections\[3\]\.sample_stop: must be above sample_start"),
+    ("samples_beyond_end", _set("sections", 9, "sample_stop", 10**6),
+     r"sections\[9\]\.sample_stop: must be 892, the samples in samples\.npz"),
+    ("s_end_below_start", _s_end_below_start, r"sections\[3\]\.s_end_m: must not be below s_start_m"),
+    ("frame_str", _set("base_frame", "xyz_mm", ["a", 0, 0]),
+     r"base_frame\.xyz_mm\[0\]: must be a finite number, got 'a'"),
+    ("frame_short", _set("tool_frame", "abc_deg", [0, 0]), r"tool_frame\.abc_deg: must hold 3 numbers"),
+    ("characteristic_str", lambda d: _first_cut(d)["characteristic"].update(feeds_mm_s="x"),
+     r"sections\[3\]\.characteristic\.feeds_mm_s: must be a list, got 'x'"),
+    ("characteristic_length", _short_margin,
+     r"sections\[3\]\.characteristic\.margin_N_per_m: must hold 25 values, one per feeds_mm_s, got 24"),
+    ("natural_frequency_short", lambda d: _first_cut(d).update(natural_frequency_hz=[1.0]),
+     r"sections\[3\]\.natural_frequency_hz: must hold 2 numbers, got \[1\.0\]"),
+    ("gamma_range_number", lambda d: _first_cut(d).update(gamma_range_deg=3),
+     r"sections\[3\]\.gamma_range_deg: must be a list, got 3"),
+    ("line_start_str", _set("sections", 3, "line_start", "x"),
+     r"sections\[3\]\.line_start: must be an integer"),
+    ("import_warnings_object", _set("import_warnings", {"a": 1}), r"import_warnings: must be a list"),
+    ("import_warning_incomplete", _set("import_warnings", [{"count": 1, "first": "a:1:1", "message": "m"}]),
+     r"import_warnings\[0\]\.kind: missing"),
+    ("warnings_str", _set("warnings", "x"), r"warnings: must be a list, got 'x'"),
+    ("files_str", _set("files", "a.nc"), r"files: must be a list, got 'a\.nc'"),
+    ("wall_times_list", _set("wall_times_s", [1]), r"wall_times_s: must be an object, got \[1\]"),
+    ("model_list", _set("model", [1]), r"model: must be an object, got \[1\]"),
+    ("job_name_object", _set("job_name", {}), r"job_name: must be a string, got \{\}"),
+    ("samples_file_path", _set("samples_file", "../other/samples.npz"),
+     r"samples_file: must be a file name ending \.npz beside plan\.json"),
+    ("version_str", _set("version", "1"), r"plan version '1'; this cctmill reads version 1"),
+    ("top_level_list", _whole(lambda text: f"[{text}]"), r"not a cctmill plan"),
+    ("integer_5000_digits", _raw("cycle_time_s", "9" * 5000), r"not readable JSON"),
+]
+
+
+def _corrupt(folder, mutate) -> None:
+    path = folder / "plan.json"
     doc = json.loads(path.read_text(encoding="utf-8"))
     mutate(doc)
-    path.write_text(json.dumps(doc), encoding="utf-8")
+    text = json.dumps(doc)
+    if hasattr(mutate, "raw"):
+        text = text.replace(json.dumps(_RAW), mutate.raw)
+    if hasattr(mutate, "text"):
+        text = mutate.text(text)
+    path.write_text(text, encoding="utf-8")
+
+
+@pytest.fixture
+def corrupted(demo_plan_dir, tmp_path, request):
+    """A copy of the demo plan with one corruption of :data:`CORRUPTIONS`."""
+    import shutil
+
+    folder = tmp_path / "plan"
+    shutil.copytree(demo_plan_dir, folder)
+    _corrupt(folder, request.param)
+    return folder
+
+
+@pytest.mark.parametrize("corrupted,match", [(m, r) for _, m, r in CORRUPTIONS],
+                         ids=[c[0] for c in CORRUPTIONS], indirect=["corrupted"])
+def test_a_corrupted_plan_is_refused_with_the_json_path(corrupted, match):
+    with pytest.raises(PlanFileError) as e:
+        load_plan(corrupted)
+    msg = str(e.value)
+    assert msg.startswith(f"{corrupted / 'plan.json'}: ") and "\n" not in msg
+    assert re.search(match, msg), msg
+    assert e.value.path == str(corrupted / "plan.json")
+    if e.value.where is not None:                 # a value of the document: its JSON path leads
+        assert msg.startswith(f"{corrupted / 'plan.json'}: {e.value.where}: ")
+
+
+@pytest.mark.parametrize("corrupted", [m for _, m, _ in CORRUPTIONS],
+                         ids=[c[0] for c in CORRUPTIONS], indirect=True)
+def test_the_cli_refuses_a_corrupted_plan_in_one_line(corrupted, capsys):
+    """``cctmill export`` and ``cctmill supervise --plan``: exit 2, one line, no traceback."""
+    for argv in (["export", str(corrupted), "-o", str(corrupted / "krl")],
+                 ["supervise", "--plan", str(corrupted), "--signal", "sim", "--robot", "sim",
+                  "--duration-s", "0.1"]):
+        assert main(argv) == 2, argv
+        out = capsys.readouterr()
+        lines = out.err.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith(f"cctmill {argv[0]}: error: "), out.err
+        assert "Traceback" not in out.err and "plan.json" in lines[0]
+    assert not (corrupted / "krl").exists()
+
+
+def test_a_valid_plan_passes_untouched(demo_plan_dir):
+    plan = load_plan(demo_plan_dir)
+    assert len(plan.sections) == 10 and len(plan.samples) == 892
+
+
+def test_a_null_feed_is_allowed_in_a_rapid_section(demo_plan_dir, tmp_path):
+    """A rapid section without a planned feed runs at the controller's rapid speed (the exporter's
+    RAPID_FEED_M_S): null is a legal value there, and only there."""
+    import shutil
+
+    shutil.copytree(demo_plan_dir, tmp_path / "plan")
+    _corrupt(tmp_path / "plan", _set("sections", 0, "feed_mm_s", None))
+    assert math.isnan(load_plan(tmp_path / "plan").sections[0].feed)
+
+
+@pytest.mark.parametrize("name,content,match", [
+    ("not_utf8", b'{"format": "cctmill-plan", "job_name": "caf\xe9"}', r"not UTF-8 text \(byte 43\)"),
+    ("not_json", b'{"format": "cctmill-plan",', r"not readable JSON"),
+])
+def test_unreadable_plan_text_is_refused(tmp_path, name, content, match):
+    (tmp_path / "plan.json").write_bytes(content)
     with pytest.raises(PlanFileError, match=match):
         load_plan(tmp_path)
+
+
+def _rewrite_samples(folder, change) -> None:
+    with np.load(folder / "samples.npz") as z:
+        arrays = {k: z[k] for k in z.files}
+    change(arrays)
+    np.savez(folder / "samples.npz", **arrays)
+
+
+@pytest.mark.parametrize("change,match", [
+    (lambda a: a.pop("q_rad"), r"array 'q_rad' missing"),
+    (lambda a: a.update(kind=a["kind"].astype(str)), r"array 'kind' holds <U\d+ values, not numbers"),
+    (lambda a: a.update(s_m=a["s_m"][:-1]), r"array 'q_rad' missing or not of shape \(891, 6\)"),
+])
+def test_a_bad_samples_table_is_refused(demo_plan_dir, tmp_path, change, match):
+    import shutil
+
+    folder = tmp_path / "plan"
+    shutil.copytree(demo_plan_dir, folder)
+    _rewrite_samples(folder, change)
+    with pytest.raises(PlanFileError, match=match):
+        load_plan(folder)
+
+
+def test_a_samples_file_that_is_no_table_is_refused(demo_plan_dir, tmp_path):
+    import shutil
+
+    folder = tmp_path / "plan"
+    shutil.copytree(demo_plan_dir, folder)
+    (folder / "samples.npz").write_bytes(b"PK\x03\x04 not a zip at all")
+    with pytest.raises(PlanFileError, match=r"samples\.npz: samples table not readable"):
+        load_plan(folder)
+    np.save(folder / "one.npy", np.zeros(3))
+    (folder / "one.npy").rename(folder / "samples.npz")
+    with pytest.raises(PlanFileError, match=r"one array, not a table"):
+        load_plan(folder)
+
+
+def test_writer_and_reader_share_one_schema(demo_plan_dir, demo_optimized, tmp_path):
+    """Every key the writer writes is one the schema knows (it forbids others) and every key the
+    schema knows is one the writer writes: ``Plan.document()`` of the demo validates."""
+    for folder in (demo_plan_dir, Plan.from_result(demo_optimized).save(tmp_path).path.parent):
+        doc = json.loads((folder / "plan.json").read_text(encoding="utf-8"))
+        with np.load(folder / "samples.npz") as z:
+            n = z["s_m"].shape[0]
+        checked = validate_document(doc, n)
+        assert len(checked.sections) == len(doc["sections"])
+        assert set(doc) == set(PlanDocument.model_fields) - {"job_file"}
+        assert set(doc["constraints"]) == set(ConstraintsDoc.model_fields)
+        written = set().union(*(s.keys() for s in doc["sections"]))
+        assert written == set(SectionDoc.model_fields)
+        chars = [s["characteristic"] for s in doc["sections"] if s["characteristic"]]
+        assert set().union(*(c.keys() for c in chars)) == set(CharacteristicDoc.model_fields)
+    plan = load_plan(demo_plan_dir)
+    in_memory = {"format": FORMAT, "version": VERSION, **plan.document(), "samples_file": "samples.npz"}
+    as_written = json.loads(json.dumps(in_memory, default=lambda v: v.item()),  # numpy scalars
+                            parse_constant=lambda _: None)      # NaN → null, as the writer does
+    validate_document(as_written, len(plan.samples))
+
+
+def test_a_schema_problem_names_the_first_and_counts_the_rest():
+    with pytest.raises(PlanFileError) as e:
+        validate_document({"format": "cctmill-plan", "version": 1}, file="x/plan.json")
+    assert e.value.where == "method" and e.value.path == "x/plan.json"
+    assert str(e.value).startswith("x/plan.json: method: missing (and ")
+
+
+def test_json_depth_skips_brackets_in_strings():
+    assert json_depth('{"a": "[[[[[[", "b": [[1]]}') == 3
+    assert json_depth('["\\"[[["]') == 1
+    assert json_depth("[" * 100 + "]" * 100, limit=5) == 6
 
 
 def test_a_missing_plan_says_how_to_make_one(tmp_path):
