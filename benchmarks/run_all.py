@@ -13,7 +13,11 @@
   cycle, detection delay and closed-loop settling on the simulated cut against the thesis;
 - ``plan_speed.py``: cycle time of optimize vs thesis vs constant on the demo job and a
   10,000-sample job, planning wall time, IPOPT iterations, peak memory, independent check;
-- ``krl_round_trip.py``: KRL write → read round trip of the demo plan and a paged long job.
+- ``krl_round_trip.py``: KRL write → read round trip of the demo plan and a paged long job;
+- ``engagement_speed.py``: the Z-map engagement against the 2.5-D model (ms per sample, share of
+  the planning wall time, agreement, a_p in the Fusion 360 program's helical bores);
+- ``feed_intent.py``: what the programmed-feed rules change on the demo (round one's air/plunge
+  rule as the baseline, then air as programmed, the tool's chip load, the CAM-feed factor).
 
 The summary table is printed; ``out/benchmarks.md`` holds it followed by every full table. The
 manual's pages are written from the same run, never pasted: ``docs/performance.md`` whole (an
@@ -107,6 +111,14 @@ Every method under identical limits. `thesis` is the thesis section algorithm
 independent checker counts. The split bound is the least cut time of any plan whose sections are at
 least `section_length_min_mm` long; the pointwise ideal gives every sample its own ceiling. See
 [Feed planning](planner.md) for how to read them.""",
+    "engagement": """\
+The baseline is the 2.5-D per-level model on the same samples, both checked before they are timed;
+the share is of the whole `plan_job` wall time of the same job. See
+[model §8](model.md#8-toolpath-sections-feed-optimisation).""",
+    "feed_intent": """\
+The baseline is round one's rule for the moves that do not cut (air at `feed_max`, a plunge's feed
+over its whole air run), emulated on this run's plan and re-timed; then each round-two rule in
+turn. Every plan passes the independent checker. See [Feed planning](planner.md).""",
     "krl": """\
 Write → lint → read back with our own KRL reader. "Absorbed" samples are plan samples inside a
 CIRC; their distance is to the read-back arc. See [KRL export](krl.md).""",
@@ -192,6 +204,28 @@ def planner_rows(plans: dict) -> list[tuple[str, str, str, str]]:
          "0 violations" if t["every_plan_checked_ok"] else "violations found",
          "none", _verdict(t["every_plan_checked_ok"])),
     ]
+
+
+def engagement_rows(r: dict) -> list[tuple[str, str, str, str]]:
+    rows = []
+    for name, key in (("demo", "demo"), ("Fusion 360 program", "fusion")):
+        d = r[key]
+        if "skipped" in d:
+            continue
+        rows.append((f"engagement (Z-map): {name}, {d['samples']:,} samples",
+                     f"{d['zmap_ms_per_sample']:.3f} ms/sample, {100 * d['share_of_plan']:.1f} % of "
+                     f"the planning wall time ({d['speedup_vs_stock']:.1f}× the 2.5-D model)",
+                     "< 20 % of planning", _verdict(d["share_of_plan"] < 0.20)))
+    return rows
+
+
+def feed_intent_rows(r: dict) -> list[tuple[str, str, str, str]]:
+    o = r["methods"]["optimize"]
+    ok = all(row["check_ok"] in (None, True) for m in r["methods"].values() for row in m.values())
+    return [("planner: demo cycle, round one's air/plunge rule → round two (optimize)",
+             f"{o['round_one']['cycle_time_s']:.1f} → {o['demo_factor_2']['cycle_time_s']:.1f} s "
+             f"(default factor 1: {o['default_factor_1']['cycle_time_s']:.1f} s)",
+             "every plan checked clean", _verdict(ok))]
 
 
 def krl_rows_summary(krl_rows: list[dict]) -> list[tuple[str, str, str, str]]:
@@ -319,6 +353,13 @@ def main(argv: list[str] | None = None) -> tuple[str, bool]:
         log, lambda: _module("plan_speed").run(), lambda r: _module("plan_speed").markdown(r),
         planner_rows)
 
+    engagement = Step("engagement", "Engagement from the stock (`benchmarks/engagement_speed.py`)").run(
+        log, lambda: _module("engagement_speed").run(),
+        lambda r: _module("engagement_speed").markdown(r), engagement_rows)
+    intent = Step("feed_intent", "The programmed feed as intent (`benchmarks/feed_intent.py`)").run(
+        log, lambda: _module("feed_intent").run(), lambda r: _module("feed_intent").markdown(r),
+        feed_intent_rows)
+
     def krl_run():
         buf = io.StringIO()
         with contextlib.redirect_stdout(buf):
@@ -328,15 +369,18 @@ def main(argv: list[str] | None = None) -> tuple[str, bool]:
     krl = Step("krl", "KRL export round trip (`benchmarks/krl_round_trip.py`)").run(
         log, krl_run, lambda r: r[1], lambda r: krl_rows_summary(r[0]))
 
-    # Summary order: throughput, thesis figures, links, toolpath, planner, KRL, supervisor, dynamics.
-    steps = [throughput_step, figures, links, toolpath, planner, krl, supervisor, dynamics]
+    # Summary order: throughput, thesis figures, links, toolpath, engagement, planner, feed intent,
+    # KRL, supervisor, dynamics.
+    steps = [throughput_step, figures, links, toolpath, engagement, planner, intent, krl,
+             supervisor, dynamics]
     failed = [st for st in steps if st.error is not None]
     rows = [row for st in steps for row in st.rows]
     rows += [(f"{st.title}", "failed: see its section", "—", "not run") for st in failed]
     machine = machine_line(throughput_step.result) if throughput_step.error is None else None
     table = summary_table(rows, machine)
     total = f"_Total wall time {time.perf_counter() - t0:.0f} s._"
-    sections = [throughput_step, toolpath, links, supervisor, dynamics, planner, krl]
+    sections = [throughput_step, toolpath, engagement, links, supervisor, dynamics, planner,
+                intent, krl]
     doc = "\n\n".join([
         "# cctmill benchmarks",
         "## Summary", table,
