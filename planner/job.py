@@ -102,6 +102,7 @@ class JobSection(_Section):
     units: Literal["mm", "inch"] | None = None
     rotary: Literal["none", "xyzac-trunnion", "xyzbc-trunnion"] | None = None
     apply_frames: bool = False
+    circle_direction: Literal["auto", "ccw", "cw"] | None = None
     initial_position_mm: Vec3 | None = None
     arc_radius_tol_mm: PosFloat | None = None
 
@@ -115,6 +116,8 @@ class JobSection(_Section):
             out["rotary"] = self.rotary
         if self.apply_frames:
             out["apply_frames"] = True
+        if self.circle_direction is not None:
+            out["circle_direction"] = self.circle_direction
         if self.initial_position_mm is not None:
             out["initial_position"] = tuple(v * 1e-3 for v in self.initial_position_mm)
         if self.arc_radius_tol_mm is not None:
@@ -388,6 +391,8 @@ KEY_DOCS: dict[str, str] = {
     "job.rotary": "G-code A/B/C kinematics: none, xyzac-trunnion or xyzbc-trunnion (table-table)",
     "job.apply_frames": "APT/CL: map points through the CSYS/MSYS setup frame (CL data in local "
                         "setup coordinates)",
+    "job.circle_direction": "APT/CL: how a CIRCLE turns about its i,j,k (auto: NX's 11-field form "
+                            "clockwise, SolidWorks CAM's 6-field form counter-clockwise)",
     "job.initial_position_mm": "G-code: the tool position before the first move [mm]",
     "job.arc_radius_tol_mm": "G-code and APT/CL: allowed start/end radius mismatch of an arc [mm] "
                              "(default: the larger of 0.002 mm and 0.1 % of the radius)",

@@ -244,11 +244,13 @@ def test_quarter_circle_length_and_direction() -> None:
 
 def test_nx_circle_eleven_fields_full_circle_and_helix() -> None:
     # NX: CIRCLE/x,y,z,i,j,k,r,tol,ratio,diameter,corner (the NX forum record, radius 0.5);
-    # from the origin, clockwise seen from +Z, to (−0.5, 0.5): three quarters
+    # NX turns clockwise about i,j,k = (0,0,−1), i.e. counter-clockwise seen from +Z: from the
+    # origin to (−0.5, 0.5) is a quarter
     tp = read_apt_text(PRE + "CIRCLE/-0.5,0,0,0,0,-1,0.5,0.002,0.5,1,0\nGOTO/-0.5,0.5,0")
     arc = tp.moves[-1]
-    assert arc.kind == MoveKind.ARC_CW
-    assert arc.length == pytest.approx(3 * math.pi * 0.5 * MM / 2, rel=1e-14)
+    assert arc.kind == MoveKind.ARC_CCW
+    assert arc.length == pytest.approx(math.pi * 0.5 * MM / 2, rel=1e-14)
+    assert tp.meta["circle_directions"] == {"cw": 1}
     # full circle (end = start) and a helix with the centre given at the end height
     tp = read_apt_text(PRE + "GOTO/5,0,0\nCIRCLE/0,0,0,0,0,1\nGOTO/5,0,0\n"
                        "CIRCLE/0,0,-2,0,0,1,5,0.01,0.5,6,0\nGOTO/5,0,-2")
@@ -260,7 +262,7 @@ def test_nx_circle_eleven_fields_full_circle_and_helix() -> None:
     tp = read_apt_text(PRE + "GOTO/5,0,0\nCIRCLE/0,0,-1,0,0,1,5,0.01,0.5,6,0,TIMES,2\n"
                        "GOTO/5,0,-4")
     assert tp.moves[-1].turns == 1
-    assert math.degrees(arc_geometry(tp.moves[-1])["sweep"]) == pytest.approx(720)
+    assert math.degrees(arc_geometry(tp.moves[-1])["sweep"]) == pytest.approx(-720)  # cw about +Z
     assert tp.meta["warning_counts"] == {"helix_turns": 1}
 
 
@@ -462,7 +464,6 @@ UNITS/MM
 CUTTER/10,1,4,1,0,0,50
 LOAD/TOOL,3
 SPINDL/8000,RPM,CLW
-CSYS/1.,0,0,0,0,1.,0,0,0,0,1.,0
 TLAXIS/0,0,1
 MULTAX/ON
 RAPID
@@ -475,6 +476,7 @@ CIRCLE/0,0,-1,0,0,1
 GOTO/0,10,-1
 CIRCLE/0,0,-1,0,0,-1,10,0.01,0.5,10,1
 GOTO/10,0,-1 $$ back
+CSYS/1.,0,0,0,0,1.,0,0,0,0,1.,0
 FEDRAT/MMPR,0.05
 GOTO/20,0,$
   -1

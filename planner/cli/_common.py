@@ -57,6 +57,9 @@ def add_reader_flags(p: argparse.ArgumentParser) -> None:
     g.add_argument("--apply-frames", action="store_true",
                    help="APT/CL: map points through the CSYS/MSYS setup frame (CL data written "
                         "in local setup coordinates)")
+    g.add_argument("--circle-direction", choices=("auto", "ccw", "cw"),
+                   help="APT/CL: how a CIRCLE turns about its i,j,k (auto: NX's 11-field form "
+                        "clockwise, SolidWorks CAM's 6-field form counter-clockwise)")
     g.add_argument("--initial-position-mm", metavar="X,Y,Z",
                    help="G-code: the tool position before the first move [mm]")
     g.add_argument("--chord-tol-mm", type=float, metavar="MM",
@@ -76,6 +79,8 @@ def reader_options(args: argparse.Namespace) -> dict:
         out["rotary"] = args.rotary
     if args.apply_frames:
         out["apply_frames"] = True
+    if args.circle_direction:
+        out["circle_direction"] = args.circle_direction
     if args.initial_position_mm:
         out["initial_position"] = tuple(
             floats(args.initial_position_mm, 3, "--initial-position-mm") * 1e-3)

@@ -12,7 +12,12 @@ from robot_io.toolpath import MoveKind
 if TYPE_CHECKING:
     from robot_io.apt._interp import Run
 
-__all__ = ["cycle_", "hole"]
+__all__ = ["NX_DRILL_SUBTYPES", "RETRACT_MODES", "cycle_", "hole"]
+
+#: NX writes peck drilling as ``CYCLE/DRILL,DEEP,…`` and ``CYCLE/DRILL,BRKCHP,…``.
+NX_DRILL_SUBTYPES = frozenset({"DEEP", "BRKCHP"})
+#: NX's retract modes: ``RTRCTO,AUTO`` (to the RAPTO point), ``RTRCTO,r,MANUAL``.
+RETRACT_MODES = frozenset({"AUTO", "MANUAL"})
 
 
 def cycle_(run: Run, rec: rc.Record) -> None:
@@ -32,6 +37,10 @@ def cycle_(run: Run, rec: rc.Record) -> None:
                     f"definition; {rc.fix_or_skip()}")
         run.cycle = run.last_cycle
         return
+    i = 1
+    if kind == "DRILL" and len(toks) > 1 and toks[1][0] in NX_DRILL_SUBTYPES:
+        kind = toks[1][0]   # NX: CYCLE/DRILL,DEEP,… / CYCLE/DRILL,BRKCHP,… (peck drilling)
+        i = 2
     if kind not in rc.DRILL_CYCLES:
         run.cycle = None   # lenient: the GOTOs until CYCLE/OFF are read as plain moves
         run.bad(run.field_offset(rec, 0), f"CYCLE/{rc.short(kind)} is not a drilling cycle this "  # type: ignore[arg-type]
@@ -39,9 +48,11 @@ def cycle_(run: Run, rec: rc.Record) -> None:
                 f"ways not modelled; {rc.fix_or_skip()}", "unsupported_cycle")
     params: dict[str, float | str] = {}
     feed: tuple[float, bool] | None = None
-    i = 1
     while i < len(toks):
         key, idx = toks[i]
+        if key in RETRACT_MODES:   # NX: RTRCTO,r,MANUAL — the mode after the value
+            i += 1
+            continue
         if not isinstance(key, str) or i + 1 >= len(toks):
             run.bad(run.field_offset(rec, idx), f"CYCLE/{kind}: expected keyword,value "
                     f"pairs (FEDTO,depth,MMPM,feed,RAPTO,clearance,RTRCTO,retract); {rc.fix_or_skip()}")
@@ -52,6 +63,8 @@ def cycle_(run: Run, rec: rc.Record) -> None:
                         f"needs a positive feed; {rc.fix_or_skip()}")
             unit, per_rev = rc.FEED_WORDS[key]
             feed = (val * unit / (1.0 if per_rev else 60.0), per_rev)  # type: ignore[operator]
+        elif key == "RTRCTO" and val == "AUTO":
+            params.pop(key, None)   # NX: retract to the RAPTO point (as without RTRCTO)
         else:
             params[key] = val
         i += 2
@@ -64,16 +77,21 @@ def cycle_(run: Run, rec: rc.Record) -> None:
                     f"CYCLE/{kind}: {key} needs a number, got {v!r}; {rc.fix_or_skip()}")
         return None if v is None else float(v) * s
 
-    depth = dist("FEDTO", None)
-    if depth is None or not depth > 0:
-        run.bad(run.field_offset(rec, 0), f"CYCLE/{kind} needs FEDTO,depth (> 0, measured "
-                f"from the hole point against the tool axis); {rc.fix_or_skip()}")
+    fedto = dist("FEDTO", None)
+    if fedto is None:
+        run.bad(run.field_offset(rec, 0), f"CYCLE/{kind} needs FEDTO,depth (measured from the "
+                f"hole point against the tool axis); {rc.fix_or_skip()}")
+    depth = abs(fedto)   # type: ignore[arg-type]   # > 0 SolidWorks CAM, < 0 NX: the same depth
+    if depth == 0:
+        run.warn(rec.col, "zero_depth_cycle", f"CYCLE/{kind} has FEDTO 0: each hole is a feed "
+                 "from the RAPTO point to the hole point and back, no deeper; check the "
+                 "operation's depth")
     if feed is None:
         run.bad(run.field_offset(rec, 0), f"CYCLE/{kind} needs its feed (MMPM,f / IPM,f / "
                 f"MMPR,f / IPR,f); {rc.fix_or_skip()}")
     clear = dist("RAPTO", 0.0)
     retract = dist("RTRCTO", None)
-    info = {"line": rec.line, "type": kind, "depth_m": depth, "rapto_m": clear,
+    info = {"line": rec.line, "type": kind, "depth_m": depth, "fedto_m": fedto, "rapto_m": clear,
             "rtrcto_m": retract, "feed": feed[0], "feed_per_rev": feed[1],  # type: ignore[index]
             "pecks_ignored": any(w in params for w in rc.PECK_WORDS),
             "dwell_ignored": bool(params.get("DWELL")), "holes": 0}

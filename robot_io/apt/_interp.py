@@ -103,6 +103,7 @@ class Run:
         self.missing_feed_warned = False
         self.rapid = False
         self.circle: tuple | None = None    # (rec, centre, axis, radius|None, turns)
+        self.circle_directions: Counter = Counter()   # CIRCLEs read by rule: "ccw" / "cw"
         self.spline: Spline | None = None   # the spline whose KNOT/CNTRL records are being read
         self.spline_count = 0
         self.cycle: dict | None = None
@@ -374,6 +375,7 @@ class Run:
                       "data are in inches)", line=self.default_units_line)
         self.meta["warning_counts"] = dict(self.warn_counts)
         self.meta["record_counts"] = dict(self.record_counts)
+        self.meta["circle_directions"] = dict(self.circle_directions)
         self.meta["ignored_records"] = {w: n for w, n in self.record_counts.items()
                                         if w in PATH_NEUTRAL}
         self.meta["records"] = nrec

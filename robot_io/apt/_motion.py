@@ -105,12 +105,39 @@ def circle_(run: Run, rec: rc.Record) -> None:
     vals = [run.number(rec, f, i) for i, f in enumerate(fields)]
     centre = point(run, vals)
     axis = direction(run, vals, 3, "circle axis i,j,k")
+    if _clockwise(run, rec, len(vals)):
+        axis = (-axis[0], -axis[1], -axis[2])   # clockwise about i,j,k = counter-clockwise about −i,j,k
     radius = None
     if len(vals) == 11:
         radius = vals[6] * run.scale
         if not radius > 0:
             run.bad(run.field_offset(rec, 6), f"CIRCLE radius must be positive; {rc.fix_or_skip()}")
     run.circle = (rec, centre, axis, radius, turns)
+
+
+def _clockwise(run: Run, rec: rc.Record, n_fields: int) -> bool:
+    """Whether the CIRCLE turns clockwise about its i,j,k (the reader docstring's evidence):
+    ``circle_direction`` when given, else by layout — 11 fields (NX) clockwise, 6 (SolidWorks
+    CAM) counter-clockwise — unless the file's setup frame is the other system's (a 6-field
+    CIRCLE after an NX ``MSYS``, an 11-field one after a SolidWorks ``CSYS``): no sample decides
+    that, so it is refused."""
+    rule = run.opts.circle_direction
+    if rule == "auto":
+        rule = "cw" if n_fields == 11 else "ccw"
+        other = "CSYS" if n_fields == 11 else "MSYS"
+        frame = next((f for f in run.meta["frames"] if f["record"] == other), None)
+        if frame is not None:
+            run.bad(run.field_offset(rec, 3), f"CIRCLE with {n_fields} fields after the "
+                    f"{other} at line {frame['line']}: the {n_fields}-field layout is "
+                    f"{'NX' if n_fields == 11 else 'SolidWorks CAM'}'s ("
+                    f"{'clockwise' if rule == 'cw' else 'counter-clockwise'} about i,j,k) but "
+                    f"{other} is {'SolidWorks CAM' if other == 'CSYS' else 'NX'}'s, and no sample "
+                    "shows which way such an arc turns; check the arcs join the moves around "
+                    f"them and state the direction ({fix('circle_direction', 'ccw')} or "
+                    f"{fix('circle_direction', 'cw')}), or {rc.fix_or_skip()}",
+                    "circle_direction_unknown")
+    run.circle_directions[rule] += 1
+    return rule == "cw"
 
 
 def _arc(run: Run, rec: rc.Record, end: rc.Vec, circle: tuple) -> None:

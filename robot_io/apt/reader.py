@@ -37,14 +37,33 @@ Conventions (read this before trusting a number)
   ``CIRCLE/xc,yc,zc,i,j,k,r,t,f,d,e`` (NX, 11 fields: radius r, total tolerance t, in-tolerance
   ratio f, tool diameter d and corner radius e — NX's CLSF documentation), optionally followed by
   ``TIMES,n``, is an arc from the current position to the end point given by the **next** record,
-  which must be a ``GOTO``. The arc turns **counter-clockwise about the circle axis i,j,k**
-  (right-hand rule). Evidence: (1) in the shared SolidWorks CAM files, 630 arcs continue the
-  move before them tangentially under this rule and 2 reverse it (the other rule swaps the two
-  counts), and the hole contours come out as 355° sweeps between 92° lead-in/lead-out arcs;
-  (2) NX documents the vector as the axis "assuming a clockwise direction", i.e. the motion is
-  clockwise when you look *along* the vector, which is the same thing; (3) the
-  aamorim1913/AptPostProcessor converter (clsplit.cpp) writes Heidenhain DR+ (counter-clockwise)
-  for an axis along the tool and DR- when it points against it. The move is stored with the
+  which must be a ``GOTO``. **Direction** (``circle_direction``, default ``"auto"``): a 6-field
+  CIRCLE turns **counter-clockwise** about i,j,k (right-hand rule), an 11-field (NX) CIRCLE
+  **clockwise** about i,j,k (i,j,k is the tool axis when the cut is clockwise, G2, seen from
+  the spindle). Evidence, SolidWorks CAM: (1) in the shared files 630 arcs continue the move
+  before them tangentially under the counter-clockwise rule and 2 reverse it (the other rule
+  swaps the counts), and the hole contours come out as 355° sweeps between 92° lead-in/lead-out
+  arcs; (2) aamorim1913/AptPostProcessor (a SolidWorks CAM APT post, clsplit.cpp) writes
+  Heidenhain DR+ (counter-clockwise) for an axis along the tool. Evidence, NX — the arcs meet
+  the moves around them where these rules say (joins: angle between an arc's end tangent and
+  the straight move there; clockwise rule / counter-clockwise rule), under MSYS frames of both
+  orientations, so the axis is **not** in another frame than the points (the rule "axis in the
+  absolute frame, counter-clockwise" predicts the identity case wrongly): HumMan/CLSFProcessor
+  ``samples/`` with MSYS z (x × y) = world −Z — ``cutcom.clsf`` 140 arcs, all 280 joins ≤ 10°
+  (the leads) against all 280 ≥ 170°, sweeps 90° against 270°; ``_3_PAZ_125_N2.cls`` 300 arcs,
+  500 of 600 joins < 1° and none > 90° against 200 and 400; ``_1_KONTUR_NAR_40_N2.cls`` 19
+  arcs, 32 of 38 < 1° and none > 90° against 12 and 26; in ``_2``/``_6``/``_7``/``_10``/
+  ``_11_KONTUR…`` the arcs that split one circle into 3–4 pieces sum to one turn (120°/90°
+  pieces) against two or three; with an **identity** MSYS, an NX Wire-EDM CLSF
+  (``TLDATA/WEDM``, ``TOOL PATH/EXTERNAL_TRIM``, quoted in a public C# test suite): 3 arcs, all
+  5 joins 0° against 180°, sweeps 90° against 270°. HumMan/CLSFProcessor's own post
+  (FiveAxisKinematics.h) writes G2 when the axis as written points along +x+y+z and G3
+  otherwise, and linearises arcs clockwise about it, with no MSYS transform. ``"auto"``
+  **refuses** the mixes no sample covers — a 6-field CIRCLE after an NX ``MSYS``, an 11-field
+  one after a SolidWorks ``CSYS`` (strict: an error naming both fixes; lenient: the CIRCLE is
+  skipped, its GOTO read as a line); ``circle_direction="ccw"`` or ``"cw"`` states the rule for
+  every CIRCLE of the file. ``meta["circle_directions"]`` counts the CIRCLEs read by each rule.
+  The move is stored with the
   normal turned towards the tool axis (+z when none), so an arc about -z is ``ARC_CW`` about +z,
   as G2 would be. The centre is projected into the start point's plane (``Move.center`` is in
   the start plane; a helix's travel is along the normal). Start and end must lie on the circle
@@ -72,8 +91,15 @@ Conventions (read this before trusting a number)
 * ``CYCLE/DRILL|DEEP|DEEP2|BRKCHP|TAP|BORE|REAM|…,FEDTO,d,…,MMPM,f,RAPTO,c,RTRCTO,r`` drilling
   cycles are **expanded**: each ``GOTO`` until ``CYCLE/OFF`` is a hole top point p with axis a (its
   i,j,k, else the tool axis in force, else +z); the moves are a rapid to p + r·a (when the tool is
-  not already within :data:`CYCLE_POSITION_TOL` of it), a rapid to p + c·a, a feed to p − d·a at
+  not already within :data:`CYCLE_POSITION_TOL` of it), a rapid to p + c·a, a feed to p − |d|·a at
   the cycle's feed, and the retract to p + r·a (at the cycle feed for TAP/BORE/REAM, else rapid).
+  FEDTO is a depth below the hole point: SolidWorks CAM writes it positive (``FEDTO,2.75344``),
+  NX as a negative offset along the tool axis (``FEDTO,-33.0043``; public NX CLSF converters
+  compute the bottom as z + FEDTO), so its sign is dropped. ``FEDTO,0`` (both HumMan NX drilling
+  samples) is read, with a warning (``zero_depth_cycle``): the feed runs from the RAPTO point to
+  the hole point and back — a well-defined move, not a malformed record. NX's forms
+  ``CYCLE/DRILL,DEEP,…`` and ``CYCLE/DRILL,BRKCHP,…`` are the DEEP and BRKCHP cycles;
+  ``RTRCTO,AUTO`` retracts to the RAPTO point, ``RTRCTO,r,MANUAL`` to r.
   RTRCTO is measured from the hole point along the axis (SolidWorks CAM places the approach GOTO
   exactly there: 27.5 mm above for ``RTRCTO,27.5``, 10 mm along the tilted axis for ``RTRCTO,10``);
   without RTRCTO the tool returns to p + c·a. Pecks (``1STPECK``, ``SUBPECK``, ``STEP``) and
@@ -131,8 +157,8 @@ Conventions (read this before trusting a number)
 
 ``Toolpath.meta``: ``program``, ``units_declared`` [(line, units)], ``frames`` [{record, line,
 rotation (3×3, rows), origin_m}], ``trntyp``, ``cutters``, ``selected_tools``, ``cycles``,
-``multax``, ``apply_frames``, ``splines``, ``listing_header``, ``record_counts`` (every major
-word), ``ignored_records`` (the path-neutral ones), ``records``,
+``multax``, ``apply_frames``, ``splines``, ``listing_header``, ``circle_directions``,
+``record_counts`` (every major word), ``ignored_records`` (the path-neutral ones), ``records``,
 ``warning_counts`` (all warnings by category, also those beyond
 :data:`MAX_WARNINGS_PER_CATEGORY`) and, from :func:`read_apt`, ``encoding``.
 
@@ -181,6 +207,7 @@ __all__ = [
     "AptOptions",
     "AptReader",
     "CHORD_TOL",
+    "CIRCLE_DIRECTIONS",
     "CYCLE_POSITION_TOL",
     "FRAME_ORTHONORMAL_TOL",
     "INCH",
@@ -198,6 +225,10 @@ __all__ = [
 ]
 
 
+#: The values of the ``circle_direction`` option.
+CIRCLE_DIRECTIONS = ("auto", "ccw", "cw")
+
+
 # --------------------------------------------------------------------------- options
 @dataclass(frozen=True)
 class AptOptions:
@@ -207,6 +238,9 @@ class AptOptions:
         default_units: units before the first ``UNITS`` record, ``"mm"`` or ``"inch"``.
         apply_frames: map GOTO/CIRCLE/FROM/TLAXIS data through the last CSYS/MSYS frame (for CL
             data written in local setup coordinates); default keeps points as written.
+        circle_direction: which way a CIRCLE turns about its i,j,k: ``"auto"`` (by layout: 11
+            fields, NX, clockwise; 6 fields, SolidWorks CAM, counter-clockwise; refused when the
+            file's frame record is the other system's), ``"ccw"`` or ``"cw"`` for every CIRCLE.
         arc_radius_tol: allowed start/end (and given-radius) mismatch of a CIRCLE [m].
         arc_radius_rtol: the same relative to the radius [-]; the larger of the two applies.
         chord_tol: largest distance of a spline's linear moves from the curve [m] (the planner
@@ -215,6 +249,7 @@ class AptOptions:
 
     default_units: str = "mm"
     apply_frames: bool = False
+    circle_direction: str = "auto"
     arc_radius_tol: float = ARC_RADIUS_TOL
     arc_radius_rtol: float = ARC_RADIUS_RTOL
     chord_tol: float = CHORD_TOL
@@ -227,6 +262,9 @@ class AptOptions:
             raise InputError("default_units", "must be 'mm' or 'inch'")
         if options.get("apply_frames", False) not in (True, False):
             raise InputError("apply_frames", "must be True or False")
+        if options.get("circle_direction", "auto") not in CIRCLE_DIRECTIONS:
+            raise InputError("circle_direction", "must be one of "
+                             + ", ".join(repr(d) for d in CIRCLE_DIRECTIONS))
         for k in ("arc_radius_tol", "arc_radius_rtol"):
             v = options.get(k, 0.0)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
@@ -248,7 +286,7 @@ def read_apt_text(text: str, file: str = "<string>", strict: bool = True,
         strict: raise :class:`ToolpathError` on the first malformed, refused or unknown record
             (default); ``False`` warns, skips it and counts it in ``Toolpath.skipped``.
         **options: fields of :class:`AptOptions` (``default_units``, ``apply_frames``,
-            ``arc_radius_tol`` [m], ``arc_radius_rtol``, ``chord_tol`` [m]).
+            ``circle_direction``, ``arc_radius_tol`` [m], ``arc_radius_rtol``, ``chord_tol`` [m]).
     """
     opts = AptOptions.from_kwargs(**options)
     return run_program(text, file, strict, opts)
