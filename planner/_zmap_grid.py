@@ -15,6 +15,13 @@ the engagement near the cell is read exactly (not from the raster):
   that cut a band too narrow to lower any cell centre: a finishing helix 0.1 mm outside a bore).
 
 A *pass* over a cell is a run of consecutive steps covering its centre.
+
+**Speed.** The steps are cut one at a time (the owners depend on the order), but what a step's
+sweep is over its window of cells — the squared distance of each centre to the step's axis, whether
+the disc covers it, the lowest tip height over it — does not depend on the grid: it is computed for
+a batch of consecutive steps at once (:meth:`HeightGrid.advance`), and each step then costs only
+the update of its window. :meth:`Steps.height` gathers its step columns one by one, so that every
+operation after the gather runs on contiguous arrays.
 """
 
 from __future__ import annotations
@@ -24,6 +31,13 @@ import math
 import numpy as np
 
 __all__ = ["OWNERS", "HeightGrid", "Steps"]
+
+_GEOMETRY_BATCH = 64
+"""Steps whose sweeps over the cell centres :meth:`HeightGrid.advance` computes at once [-]..."""
+
+_GEOMETRY_CELLS = 65_536
+"""... unless their windows hold more cells than this [-] (a batch keeps at least one step): the
+temporaries then stay in the cache (about 600 cells a step at the default cell of R/10)."""
 
 OWNERS = 4
 """Owner steps per cell [-] (lowest; closest of the lowest pass, and of the one before; closest of
@@ -56,11 +70,10 @@ class Steps:
                                 np.where(clears & moving, d[:, 2], 0.0)])
         #: per step (rows, the sentinel last): start x, y, step dx, dy, 1/|step_xy|² (0 for a
         #: plunge), z at the start (the lower end for a plunge; +inf if it clears nothing), dz.
-        self.table = np.vstack([cols, [far, far, 0.0, 0.0, 0.0, math.inf, 0.0]])
-        self.ax, self.ay, self.dx, self.dy, self.inv, self.za, self.dz = self.table.T
-        # the same as Python floats, for the one-step-at-a-time grid update
-        (self.ax_of, self.ay_of, self.dx_of, self.dy_of, self.inv_of, self.za_of,
-         self.dz_of) = (c.tolist() for c in self.table.T)
+        table = np.vstack([cols, [far, far, 0.0, 0.0, 0.0, math.inf, 0.0]])
+        # contiguous columns: gathered one by one, they keep every later operation contiguous
+        self.ax, self.ay, self.dx, self.dy, self.inv, self.za, self.dz = (
+            np.ascontiguousarray(c) for c in table.T)
 
     def height(self, qx: np.ndarray, qy: np.ndarray, k: np.ndarray, r2: np.ndarray | float
                ) -> np.ndarray:
@@ -72,29 +85,43 @@ class Steps:
         √(r2 − perp²) of q's projection on the step; z is linear in t, so its least value over that
         interval is at one end.
         """
-        g = self.table[k]
-        ax, ay, dx, dy, inv, za, dz = g.T if g.ndim == 2 else np.moveaxis(g, -1, 0)
-        rx = qx - ax
-        ry = qy - ay
-        along = rx * dx + ry * dy
+        k = np.asarray(k)
+        shape = np.broadcast_shapes(np.shape(qx), np.shape(qy), k.shape, np.shape(r2))
+        if k.shape != shape:
+            k = np.broadcast_to(k, shape)
+        ax, ay, dx, dy = self.ax.take(k), self.ay.take(k), self.dx.take(k), self.dy.take(k)
+        rx = np.subtract(qx, ax, out=ax)
+        ry = np.subtract(qy, ay, out=ay)
+        along = np.multiply(rx, dx, out=dx)
+        along += np.multiply(ry, dy, out=dy)
+        inv = self.inv.take(k)
         t_c = along * inv
-        perp2 = rx * rx + ry * ry
+        perp2 = np.multiply(rx, rx, out=rx)
+        perp2 += np.multiply(ry, ry, out=ry)
         along *= t_c
         perp2 -= along
-        slack = r2 - perp2
-        half = np.maximum(slack, 0.0)
+        slack = np.subtract(r2, perp2, out=perp2)
+        half = np.maximum(slack, 0.0, out=along)
         half *= inv
         np.sqrt(half, out=half)
-        lo = np.maximum(t_c - half, 0.0)
+        lo = np.subtract(t_c, half, out=inv)
+        np.maximum(lo, 0.0, out=lo)
         t_c += half
         hi = np.minimum(t_c, 1.0, out=t_c)
-        miss = (slack <= 0.0) | (lo > hi)
+        miss = slack <= 0.0
+        miss |= lo > hi
+        dz = self.dz.take(k)
         lo *= dz
         hi *= dz
         z = np.minimum(lo, hi, out=lo)
-        z += za
+        z += self.za.take(k)
         z[miss] = np.inf
         return z
+
+
+_Sweep = tuple[int, int, int, int, int, "np.ndarray | None", "np.ndarray | None",
+               "np.ndarray | float | None"]
+"""A step's sweep over its window, :meth:`HeightGrid._update`'s arguments."""
 
 
 class HeightGrid:
@@ -128,58 +155,172 @@ class HeightGrid:
         self.dist = np.full((self.nx, self.ny, 2), np.inf, dtype=np.float32)  # closest owners' [m²]
         self.last = np.full((self.nx, self.ny), -1, dtype=np.int32)  # last step covering a cell
         self.previous = -2  # the step removed last (−2: none yet)
+        self._owner_rows, self._h_flat = self.owner.reshape(-1, OWNERS), self.h.reshape(-1)  # views
         self._offsets = (_NEIGHBOURS[:, 0] * self.ny + _NEIGHBOURS[:, 1])
+
+    def plan(self, order: np.ndarray, radius: float) -> None:
+        """Declare the steps :meth:`advance` removes, in path order, and the tool radius R [m]."""
+        self._order, self._radius, self.done = np.asarray(order, dtype=np.int64), radius, 0
+        self._batch: list[_Sweep] = []
+        self._batch_start = 0
+
+    def advance(self, count: int) -> None:
+        """Remove the first ``count`` planned steps (those not removed yet), each as
+        :meth:`remove` would; their sweeps are computed a batch at a time."""
+        while self.done < count:
+            b = self.done - self._batch_start
+            if b >= len(self._batch):
+                self._batch_start, b = self.done, 0
+                self._batch = self._geometry(self._order[self.done:self.done + _GEOMETRY_BATCH],
+                                             self._radius)
+            self._update(*self._batch[b])
+            self.done += 1
 
     def remove(self, k: int, radius: float) -> None:
         """Lower the cells step ``k`` sweeps to the tool's lowest pass over their centres and update
         their owners. Steps must be removed in path order (a pass is a run of consecutive steps)."""
-        st, inv_c, r = self.steps, 1.0 / self.cell, radius
-        ax, ay, dx, dy = st.ax_of[k], st.ay_of[k], st.dx_of[k], st.dy_of[k]
-        i0 = max(math.ceil((min(ax, ax + dx) - r - self.x0) * inv_c), 0)
-        i1 = min(math.floor((max(ax, ax + dx) + r - self.x0) * inv_c) + 1, self.nx)
-        j0 = max(math.ceil((min(ay, ay + dy) - r - self.y0) * inv_c), 0)
-        j1 = min(math.floor((max(ay, ay + dy) + r - self.y0) * inv_c) + 1, self.ny)
-        if i0 >= i1 or j0 >= j1:
-            return
-        inv, za, dz, r2 = st.inv_of[k], st.za_of[k], st.dz_of[k], r * r
-        rx, ry = self.xc[i0:i1, None] - ax, self.yc[None, j0:j1] - ay
-        t = (rx * dx + ry * dy) * inv
-        tc = np.clip(t, 0.0, 1.0)
-        d2 = (rx - tc * dx) ** 2 + (ry - tc * dy) ** 2  # squared distance to the step's axis
+        self._update(*self._geometry(np.array([k]), radius)[0])
+
+    def _geometry(self, ks: np.ndarray, radius: float) -> list[_Sweep]:
+        """The sweeps of the first of the steps ``ks`` (all of them, or as many as hold
+        :data:`_GEOMETRY_CELLS` cells, at least one) over the cell centres of their windows, for
+        :meth:`_update`. The arithmetic is that of one step at a time, element by element."""
+        st, inv_c, r, r2 = self.steps, 1.0 / self.cell, radius, radius * radius
+        ax, ay, dx, dy, inv = st.ax[ks], st.ay[ks], st.dx[ks], st.dy[ks], st.inv[ks]
+        ex, ey = ax + dx, ay + dy
+        i0 = np.maximum(np.ceil((np.minimum(ax, ex) - r - self.x0) * inv_c), 0).astype(np.int64)
+        i1 = np.minimum(np.floor((np.maximum(ax, ex) + r - self.x0) * inv_c) + 1,
+                        self.nx).astype(np.int64)
+        j0 = np.maximum(np.ceil((np.minimum(ay, ey) - r - self.y0) * inv_c), 0).astype(np.int64)
+        j1 = np.minimum(np.floor((np.maximum(ay, ey) + r - self.y0) * inv_c) + 1,
+                        self.ny).astype(np.int64)
+        ni, nj = np.maximum(i1 - i0, 0), np.maximum(j1 - j0, 0)
+        nj = np.where(ni > 0, nj, 0)
+        ni = np.where(nj > 0, ni, 0)
+        size = ni * nj
+        end = np.cumsum(size)
+        fit = max(int(np.searchsorted(end, _GEOMETRY_CELLS, side="right")), 1)
+        if fit < ks.size:
+            ks, ax, ay, dx, dy, inv, i0, i1, j0, j1, ni, nj, size, end = (
+                v[:fit] for v in (ks, ax, ay, dx, dy, inv, i0, i1, j0, j1, ni, nj, size, end))
+        start = end - size
+        # rows (step, i) and columns (step, j) of the windows, then their cells (row-major)
+        row_step = np.repeat(np.arange(ks.size), ni)
+        row_i = np.arange(row_step.size) - np.repeat(np.cumsum(ni) - ni - i0, ni)
+        col_step = np.repeat(np.arange(ks.size), nj)
+        col_j = np.arange(col_step.size) - np.repeat(np.cumsum(nj) - nj - j0, nj)
+        rx_row = self.xc[row_i] - ax[row_step]
+        ry_col = self.yc[col_j] - ay[col_step]
+        per_row = nj[row_step]
+        col = np.arange(int(end[-1]) if ks.size else 0) - np.repeat(
+            np.cumsum(per_row) - per_row - (np.cumsum(nj) - nj)[row_step], per_row)
+        rx = np.repeat(rx_row, per_row)
+        ry = ry_col[col]
+        dxb = np.repeat(dx[row_step], per_row)
+        dyb = np.repeat(dy[row_step], per_row)
+        t = np.repeat(rx_row * dx[row_step], per_row)
+        t += (ry_col * dy[col_step])[col]
+        inv_b = np.repeat(inv[row_step], per_row)
+        t *= inv_b
+        tc = np.maximum(t, 0.0)
+        np.minimum(tc, 1.0, out=tc)
+        d2 = tc * dxb
+        np.subtract(rx, d2, out=d2)
+        d2 *= d2
+        e = np.multiply(tc, dyb, out=dxb)
+        np.subtract(ry, e, out=e)
+        e *= e
+        d2 += e  # squared distance to the step's axis
+        b = np.repeat(row_step, per_row)
         covered = d2 < r2
-        if dz == 0.0:
-            z = np.where(covered, za, np.inf)
-        else:  # the lowest end of the interval of t over which the disc covers the centre
-            half = np.sqrt(np.maximum(r2 - (d2 - (t - tc) ** 2 / inv), 0.0) * inv)
-            z = za + dz * np.clip(t + (half if dz < 0.0 else -half), 0.0, 1.0)
-            z[~covered] = np.inf
+        dz, za = st.dz[ks], st.za[ks]
+        z = None
+        sloped = dz[b] != 0.0
+        if sloped.any():  # the lowest end of the interval of t over which the disc covers the centre
+            z = np.empty(t.size)
+            ts, tcs, invs, bs = t[sloped], tc[sloped], inv_b[sloped], b[sloped]
+            e = ts - tcs
+            e *= e
+            e /= invs
+            np.subtract(d2[sloped], e, out=e)
+            np.subtract(r2, e, out=e)
+            np.maximum(e, 0.0, out=e)
+            e *= invs
+            np.sqrt(e, out=e)
+            np.negative(e, out=e, where=dz[bs] > 0.0)
+            ts += e
+            np.maximum(ts, 0.0, out=ts)
+            np.minimum(ts, 1.0, out=ts)
+            ts *= dz[bs]
+            ts += za[bs]
+            z[sloped] = ts
+        out: list[_Sweep] = []
+        for k, a0, a1, c0, c1, o, n, zq, dzq in zip(
+                ks.tolist(), i0.tolist(), i1.tolist(), j0.tolist(), j1.tolist(), start.tolist(),
+                size.tolist(), za.tolist(), dz.tolist(), strict=True):
+            if n == 0:  # the window is off the grid
+                out.append((k, 0, 0, 0, 0, None, None, None))
+                continue
+            shape = (a1 - a0, c1 - c0)
+            out.append((k, a0, a1, c0, c1, d2[o:o + n].reshape(shape),
+                        covered[o:o + n].reshape(shape),
+                        z[o:o + n].reshape(shape) if dzq != 0.0 and z is not None else zq))
+        return out
+
+    def _update(self, k: int, i0: int, i1: int, j0: int, j1: int, d2: np.ndarray | None,
+                covered: np.ndarray | None, z: np.ndarray | float | None) -> None:
+        """Apply step ``k``'s sweep (from :meth:`_geometry`) to the cells of its window
+        [i0, i1) × [j0, j1): ``d2`` the squared distances of their centres to the step's axis [m²],
+        ``covered`` where the disc covers them, ``z`` the lowest tip height over them [m] (a float
+        for a level step; meaningless where not covered). Nothing (not even the step's being the
+        previous one) where the window is off the grid (``d2`` None)."""
+        if d2 is None or covered is None or z is None:
+            return
         win = np.s_[i0:i1, j0:j1]
-        h, owner, dist, last = self.h[win], self.owner[win], self.dist[win], self.last[win]
-        new = covered & (last != self.previous)
+        hv, owner, dist, last = self.h[win], self.owner[win], self.dist[win], self.last[win]
+        h = hv.copy()
+        new = last != self.previous
+        new &= covered
         tol = self.tie_tol
-        np.copyto(owner[..., 0], k, where=z < h)
-        deeper = new & (z < h - tol)
+        lt = np.less(z, h)
+        lt &= covered
+        np.copyto(owner[..., 0], k, where=lt)
+        deeper = np.less(z, h - tol)
+        deeper &= new
         np.copyto(owner[..., 2], owner[..., 1], where=deeper)
-        lower = deeper | ((z <= h + tol) & (d2 < dist[..., 0]))
+        h += tol
+        lower = np.less_equal(z, h)
+        lower &= covered
+        lower &= d2 < dist[..., 0]
+        lower |= deeper
         np.copyto(owner[..., 1], k, where=lower)
         np.copyto(dist[..., 0], d2, where=lower)
-        latest = new | (covered & (d2 < dist[..., 1]))
+        latest = d2 < dist[..., 1]
+        latest &= covered
+        latest |= new
         np.copyto(owner[..., 3], k, where=latest)
         np.copyto(dist[..., 1], d2, where=latest)
         np.copyto(last, k, where=covered)
         self.previous = k
-        np.minimum(h, z, out=h)
+        np.copyto(hv, z, where=lt)
 
     def cells(self, qx: np.ndarray, qy: np.ndarray) -> np.ndarray:
         """The flat index of the lower-left of the 2 × 2 cells whose centres surround each point
-        (qx, qy) [m] (any shape, the same returned), for :meth:`neighbourhood`. Points off the grid
+        (qx, qy) [m] (any shape, the same returned), for :meth:`neighbours`. Points off the grid
         read its edge (the caller tests the stock outline)."""
         i = np.minimum(np.maximum(((qx - self.x0) / self.cell).astype(np.int64), 0), self.nx - 2)
         j = np.minimum(np.maximum(((qy - self.y0) / self.cell).astype(np.int64), 0), self.ny - 2)
         return i * self.ny + j
 
-    def neighbourhood(self, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The owners and the heights of the 2 × 2 cells at ``cells`` (from :meth:`cells`), shape
-        (m,): arrays of shape (m, 4 · OWNERS) (−1 where no step has cut) and (m, 4) [m]."""
-        flat = cells[:, None] + self._offsets
-        return self.owner.reshape(-1, OWNERS)[flat].reshape(cells.size, -1), self.h.reshape(-1)[flat]
+    def neighbours(self, cells: np.ndarray) -> np.ndarray:
+        """The flat indices of the 2 × 2 cells at ``cells`` (from :meth:`cells`), shape
+        ``cells.shape + (4,)``, for :meth:`read`."""
+        return cells[..., None] + self._offsets
+
+    def read(self, flat_owners: np.ndarray, flat_h: np.ndarray, owners: np.ndarray,
+             heights: np.ndarray) -> None:
+        """Copy the owners of the cells ``flat_owners`` and the heights of the cells ``flat_h``
+        (flat indices from :meth:`neighbours`, shape (m,)) into ``owners`` (shape (m, OWNERS),
+        int32, −1 where no step has cut) and ``heights`` (shape (m,)) [m]."""
+        self._owner_rows.take(flat_owners, axis=0, out=owners)
+        self._h_flat.take(flat_h, out=heights)
