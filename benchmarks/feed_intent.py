@@ -82,6 +82,8 @@ def run() -> dict:
         no_tool = replace(prep1, tool=replace(prep1.tool, feed_per_tooth_max=None))
         free = replace(plan_prepared(prep1, method).limits, cam_feed_scale_max=math.inf)
         res = plan_prepared(no_tool, method, limits=free)
+        if method == "optimize" and not res.solver.success:
+            raise SystemExit(f"optimize did not converge ({res.solver.status}): nothing to time")
         rows["round_one"] = {"cycle_time_s": _round_one_cycle(res), "check_ok": None}
         variants = [("air_plunge_fix", no_tool, free), ("tool_chip_load", prep1, free),
                     ("default_factor_1", prep1, None)]
@@ -89,6 +91,9 @@ def run() -> dict:
         variants.append(("demo_factor_2", prep2, None))
         for name, prep, limits in variants:
             r = plan_prepared(prep, method, limits=limits)
+            if method == "optimize" and not r.solver.success:
+                raise SystemExit(f"{name}: optimize did not converge ({r.solver.status}): "
+                                 "nothing to time")
             rep = check_result(r)
             rows[name] = {"cycle_time_s": r.cycle_time, "cut_time_s": r.cut_time,
                           "check_ok": rep.ok, "violations": len(rep.violations),

@@ -43,6 +43,7 @@ __all__ = [
     "VERTICAL_AXIS_TOL",
     "below_bottom_warnings",
     "stock_engagement",
+    "stock_inputs",
 ]
 
 _UP, _DOWN, _SLOT = MILLING_MODES["up"], MILLING_MODES["down"], MILLING_MODES["slot"]
@@ -273,30 +274,13 @@ def stock_engagement(points: Any, tool_axis: Any, cutting: Any, tool_radius: flo
         InputError: on shapes, a non-positive radius or tolerance, or a cutting sample whose tool
             axis is more than VERTICAL_AXIS_TOL from +Z.
     """
-    pts = np.asarray(points, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] != 3:
-        raise InputError("points", f"must have shape (n, 3), got {pts.shape}")
-    if not np.all(np.isfinite(pts)):
-        raise InputError("points", "contains NaN or infinite values")
+    pts, cut, axes = stock_inputs(points, tool_axis, cutting, tool_radius, stock, where,
+                                  "2.5-D engagement from a stock")
     n = pts.shape[0]
-    cut = cutting_mask(cutting, n)
-    axes = unit_axes(tool_axis, n)
-    if not (math.isfinite(tool_radius) and tool_radius > 0):
-        raise InputError("tool_radius", f"must be positive [m], got {tool_radius!r}")
-    if not isinstance(stock, Stock):
-        raise InputError("stock", f"must be a Stock, got {type(stock).__name__}")
     if not (math.isfinite(z_tol) and z_tol > 0):
         raise InputError("z_tol", f"must be positive [m], got {z_tol!r}")
     if not (0 < angular_resolution <= math.pi / 4):
         raise InputError("angular_resolution", f"must lie in (0, π/4] rad, got {angular_resolution!r}")
-    tilt = np.arccos(np.clip(axes[:, 2], -1.0, 1.0))
-    bad = np.flatnonzero(cut & (tilt > VERTICAL_AXIS_TOL))
-    if bad.size:
-        i = bad[0]
-        place = f" ({where(i)})" if where is not None else ""
-        raise InputError("tool_axis", f"sample {i}{place}: the tool axis is {math.degrees(tilt[i]):.3g} deg "
-                         f"from +Z; 2.5-D engagement from a stock needs a vertical tool (within "
-                         f"{math.degrees(VERTICAL_AXIS_TOL):g} deg) — use fixed engagement for 5-axis")
 
     radius = float(tool_radius)
     z_top, z_bottom = float(stock.z_top), float(stock.z_bottom)
@@ -412,3 +396,39 @@ def _bisect(material: Any, rows: np.ndarray, phi_air: np.ndarray, phi_mat: np.nd
         mat = np.where(inside, mid, mat)
         air = np.where(inside, air, mid)
     return 0.5 * (air + mat)
+
+
+def stock_inputs(points: Any, tool_axis: Any, cutting: Any, tool_radius: float, stock: Stock,
+                 where: Callable[[int], str] | None, model: str
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The checked inputs of a stock model (this module's and :mod:`planner.zmap`'s): points
+    [m], shape (n, 3); the cutting mask, shape (n,); unit tool axes, shape (n, 3).
+
+    Raises:
+        InputError: on shapes, a non-positive radius, a stock that is no :class:`Stock`, or a
+            cutting sample whose tool axis is more than VERTICAL_AXIS_TOL from +Z (named with
+            ``where(sample)`` when given; ``model`` names the model in the message).
+    """
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise InputError("points", f"must have shape (n, 3), got {pts.shape}")
+    if not np.all(np.isfinite(pts)):
+        raise InputError("points", "contains NaN or infinite values")
+    n = pts.shape[0]
+    cut = cutting_mask(cutting, n)
+    axes = unit_axes(tool_axis, n)
+    if not (math.isfinite(tool_radius) and tool_radius > 0):
+        raise InputError("tool_radius", f"must be positive [m], got {tool_radius!r}")
+    if not isinstance(stock, Stock):
+        raise InputError("stock", f"must be a Stock, got {type(stock).__name__}")
+    tilt = np.arccos(np.clip(axes[:, 2], -1.0, 1.0))
+    bad = np.flatnonzero(cut & (tilt > VERTICAL_AXIS_TOL))
+    if bad.size:
+        i = int(bad[0])
+        place = f" ({where(i)})" if where is not None else ""
+        raise InputError("tool_axis", f"sample {i}{place}: the tool axis is "
+                         f"{math.degrees(tilt[i]):.3g} deg from +Z; {model} needs a vertical tool "
+                         f"(within {math.degrees(VERTICAL_AXIS_TOL):g} deg: a 3-axis program) — "
+                         "use fixed engagement ([engagement] source = \"fixed\") for a tilted "
+                         "tool")
+    return pts, cut, axes

@@ -19,7 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from models.errors import InputError
+from models.errors import DataFileError, InputError, UnknownDataError
 from models.tooling import Material, Tool, load_tool
 
 __all__ = [
@@ -107,7 +107,7 @@ def tool_warnings(tool: Tool, material: Material) -> list[PlanWarning]:
             "identified with: the forces may be an extrapolation"))]
     try:
         ref = load_tool(material.identified_with)
-    except Exception:   # noqa: BLE001 — a missing reference tool is itself the warning
+    except (UnknownDataError, DataFileError):  # a missing reference tool is itself the warning
         return [PlanWarning("coefficients", (
             f"the cutting coefficients of {material.name} were identified with tool "
             f"{material.identified_with!r}, which has no data file: the forces may be an "

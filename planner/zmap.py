@@ -63,12 +63,10 @@ from planner._zmap_scan import refine, scan, window
 from planner.cutting_frame import (
     AIR,
     Engagement,
-    cutting_mask,
     feed_directions,
     radial_directions,
-    unit_axes,
 )
-from planner.stock import LEVEL_TOL, VERTICAL_AXIS_TOL, Stock, below_bottom_warnings
+from planner.stock import LEVEL_TOL, Stock, below_bottom_warnings, stock_inputs
 
 __all__ = [
     "ANGULAR_RESOLUTION",
@@ -181,18 +179,8 @@ def zmap_engagement(points: Any, tool_axis: Any, cutting: Any, tool_radius: floa
         InputError: on shapes, a non-positive radius, a cell outside (0, R/2] or a grid over
             :data:`MAX_CELLS`, or a cutting sample whose tool axis is tilted (use the fixed source).
     """
-    pts = np.asarray(points, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] != 3:
-        raise InputError("points", f"must have shape (n, 3), got {pts.shape}")
-    if not np.all(np.isfinite(pts)):
-        raise InputError("points", "contains NaN or infinite values")
-    n = pts.shape[0]
-    cut = cutting_mask(cutting, n)
-    axes = unit_axes(tool_axis, n)
-    if not (math.isfinite(tool_radius) and tool_radius > 0):
-        raise InputError("tool_radius", f"must be positive [m], got {tool_radius!r}")
-    if not isinstance(stock, Stock):
-        raise InputError("stock", f"must be a Stock, got {type(stock).__name__}")
+    pts, cut, axes = stock_inputs(points, tool_axis, cutting, tool_radius, stock, where,
+                                  "the Z-map")
     radius = float(tool_radius)
     cell = default_cell(radius) if cell is None else float(cell)
     if not (math.isfinite(cell) and 0 < cell <= 0.5 * radius):
@@ -200,15 +188,6 @@ def zmap_engagement(points: Any, tool_axis: Any, cutting: Any, tool_radius: floa
                          f"{0.5e3 * radius:g}] mm for this tool, got {cell * 1e3:g} mm")
     if not (math.isfinite(sliver) and 0 <= sliver < 0.1 * radius):
         raise InputError("sliver", f"must lie in [0, R/10) [m], got {sliver!r}")
-    tilt = np.arccos(np.clip(axes[:, 2], -1.0, 1.0))
-    bad = np.flatnonzero(cut & (tilt > VERTICAL_AXIS_TOL))
-    if bad.size:
-        i = int(bad[0])
-        place = f" ({where(i)})" if where is not None else ""
-        raise InputError("tool_axis", f"sample {i}{place}: the tool axis is "
-                         f"{math.degrees(tilt[i]):.3g} deg from +Z; the Z-map models 3-axis "
-                         f"programs (a vertical tool, within {math.degrees(VERTICAL_AXIS_TOL):g} "
-                         f"deg) — use [engagement] source = \"fixed\" for a tilted tool")
     bounds = tuple(float(v) for v in stock.polygon.bounds)
     cells = (math.ceil((bounds[2] - bounds[0]) / cell) + 5) * (math.ceil((bounds[3] - bounds[1])
                                                                          / cell) + 5)
