@@ -21,16 +21,20 @@ sweep is over its window of cells — the squared distance of each centre to the
 the disc covers it, the lowest tip height over it — does not depend on the grid: it is computed for
 a batch of consecutive steps at once (:meth:`HeightGrid.advance`), and each step then costs only
 the update of its window. :meth:`Steps.height` gathers its step columns one by one, so that every
-operation after the gather runs on contiguous arrays.
+operation after the gather runs on contiguous arrays. That update is still about 20 numpy calls a
+step, whatever its window holds; on long paths (:data:`COMPILED_STEPS`) the steps are cut by a
+compiled loop instead (:mod:`planner._zmap_kernel`, numba), with the same arithmetic cell by cell
+and bit for bit the same grid.
 """
 
 from __future__ import annotations
 
 import math
+import sys
 
 import numpy as np
 
-__all__ = ["OWNERS", "HeightGrid", "Steps"]
+__all__ = ["COMPILED_STEPS", "OWNERS", "HeightGrid", "Steps"]
 
 _GEOMETRY_BATCH = 64
 """Steps whose sweeps over the cell centres :meth:`HeightGrid.advance` computes at once [-]..."""
@@ -38,6 +42,14 @@ _GEOMETRY_BATCH = 64
 _GEOMETRY_CELLS = 65_536
 """... unless their windows hold more cells than this [-] (a batch keeps at least one step): the
 temporaries then stay in the cache (about 600 cells a step at the default cell of R/10)."""
+
+COMPILED_STEPS = 20_000
+"""Paths of this many steps or more are cut by the compiled loop of :mod:`planner._zmap_kernel`
+[steps], and so is every path once that loop is loaded in the process: it costs about 1 µs a step
+against about 20 µs for the numpy update, but loading it (numba and its cached machine code) costs
+about 0.4 s in a new process, gained back after some 20,000 steps."""
+
+_KERNEL = "planner._zmap_kernel"
 
 OWNERS = 4
 """Owner steps per cell [-] (lowest; closest of the lowest pass, and of the one before; closest of
@@ -158,15 +170,33 @@ class HeightGrid:
         self._owner_rows, self._h_flat = self.owner.reshape(-1, OWNERS), self.h.reshape(-1)  # views
         self._offsets = (_NEIGHBOURS[:, 0] * self.ny + _NEIGHBOURS[:, 1])
 
-    def plan(self, order: np.ndarray, radius: float) -> None:
-        """Declare the steps :meth:`advance` removes, in path order, and the tool radius R [m]."""
+    def plan(self, order: np.ndarray, radius: float, compiled: bool | None = None) -> None:
+        """Declare the steps :meth:`advance` removes, in path order, and the tool radius R [m].
+
+        ``compiled``: cut them with the compiled loop (:mod:`planner._zmap_kernel`), bit for bit
+        the same grid; by default when it pays (:data:`COMPILED_STEPS`)."""
         self._order, self._radius, self.done = np.asarray(order, dtype=np.int64), radius, 0
         self._batch: list[_Sweep] = []
         self._batch_start = 0
+        if compiled is None:
+            compiled = self._order.size >= COMPILED_STEPS or _KERNEL in sys.modules
+        self._compiled = bool(compiled)
 
     def advance(self, count: int) -> None:
         """Remove the first ``count`` planned steps (those not removed yet), each as
-        :meth:`remove` would; their sweeps are computed a batch at a time."""
+        :meth:`remove` would; their sweeps are computed a batch at a time (or by the compiled
+        loop, one cell at a time)."""
+        if self._compiled:
+            if self.done < count:
+                from planner._zmap_kernel import advance
+
+                st = self.steps
+                self.previous = int(advance(
+                    self._order, self.done, count, st.ax, st.ay, st.dx, st.dy, st.inv, st.za,
+                    st.dz, self.x0, self.y0, 1.0 / self.cell, self.xc, self.yc, self._radius,
+                    self.tie_tol, self.h, self.owner, self.dist, self.last, self.previous))
+                self.done = count
+            return
         while self.done < count:
             b = self.done - self._batch_start
             if b >= len(self._batch):

@@ -329,7 +329,7 @@ def plan_job(job: Job, method: str | None = None, safety_factor: float | None = 
     prep = prepare(job, progress=progress)
     prep_time = time.perf_counter() - t
     result = plan_prepared(prep, method or job.plan.method, safety_factor, progress=progress)
-    result.wall_times = {"prepare_s": prep_time, **result.wall_times}
+    result.wall_times = {"prepare_s": prep_time, **prep.wall_times, **result.wall_times}
     return result
 
 

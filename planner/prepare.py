@@ -7,7 +7,8 @@ from the stock model). :func:`inspect_job` turns that into the ``cctmill inspect
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -48,6 +49,8 @@ class Prepared:
             base).
         warnings: what preparing noticed that the plan must carry (a tool override that drops
             the tool file's limits).
+        wall_times: wall time of its stages [s]: ``read_s`` (toolpaths read and sampled),
+            ``ik_s`` (inverse kinematics), ``engagement_s``.
     """
 
     job: Job
@@ -58,6 +61,7 @@ class Prepared:
     kinematics: PathKinematics
     engagement: Engagement
     warnings: tuple[PlanWarning, ...] = ()
+    wall_times: dict[str, float] = field(default_factory=dict)
 
 
 def tool_of(job: Job) -> Tool:
@@ -103,17 +107,22 @@ def prepare(job: Job, progress: bool = False) -> Prepared:
         job: the validated job.
         progress: show progress on stderr (long paths).
     """
+    t = time.perf_counter()
     robot = load_robot(job.cell.robot)
     tool, warnings = job_tool(job.tool.name, job.to_si().tool_radius, job.tool.flutes)
     si = job.to_si()
     toolpaths = read_job_toolpaths(job, si.chord_tol)
     base = si.base
     path = sample_toolpath(list(toolpaths), base, si.chord_tol, si.step_max)
+    walls = {"read_s": time.perf_counter() - t}
+    t = time.perf_counter()
     fixed = job.kinematics.tool_rotation == "fixed"
     kin = solve_path(robot, path, si.tool, IKOptions(
         seed=si.seed_joints, choose_for_stiffness=job.kinematics.choose_for_stiffness and not fixed,
         tool_rotation=si.tool_rotation if fixed else None),
         progress=progress)
+    walls["ik_s"] = time.perf_counter() - t
+    t = time.perf_counter()
     eng = job.engagement
     feed_dir_wp = path.feed_dir_wp
     if eng.source == "fixed":
@@ -139,8 +148,10 @@ def prepare(job: Job, progress: bool = False) -> Prepared:
                             engaged_angle=e.engaged_angle,
                             feed_dir=None if e.feed_dir is None else e.feed_dir @ rot.T,
                             plunge=e.plunge, warnings=e.warnings)
+    walls["engagement_s"] = time.perf_counter() - t
     return Prepared(job=job, robot=robot, tool=tool, toolpaths=toolpaths, path=path,
-                    kinematics=kin, engagement=engagement, warnings=tuple(warnings))
+                    kinematics=kin, engagement=engagement, warnings=tuple(warnings),
+                    wall_times=walls)
 
 
 def inspect_job(prep: Prepared) -> dict[str, Any]:

@@ -526,7 +526,7 @@ def test_batched_grid_update_is_the_one_step_update(cell: float) -> None:
             np.testing.assert_array_equal(d2, ref[1])
             np.testing.assert_array_equal(covered, ref[2])
             np.testing.assert_array_equal(np.where(covered, z, np.inf), ref[3])
-    grids[0].plan(sweep, R)
+    grids[0].plan(sweep, R, compiled=False)
     grids[0].advance(sweep.size // 3)
     grids[0].advance(sweep.size)
     for k in sweep:
@@ -534,6 +534,61 @@ def test_batched_grid_update_is_the_one_step_update(cell: float) -> None:
     for name in ("h", "owner", "dist", "last"):
         np.testing.assert_array_equal(getattr(grids[0], name), getattr(grids[1], name))
     assert np.any(grids[0].h < 0.02) and np.any(grids[0].owner[..., 2] >= 0)
+    # the compiled loop (long paths) leaves the same grid, bit for bit, advanced in pieces too
+    compiled = HeightGrid((0.0, 0.0, 0.1, 0.05), cell, 0.02, DEPTH_TOL, steps)
+    compiled.plan(sweep, R, compiled=True)
+    for count in (1, sweep.size // 3, sweep.size // 3, sweep.size):
+        compiled.advance(count)
+    for name in ("h", "owner", "dist", "last", "previous"):
+        np.testing.assert_array_equal(getattr(compiled, name), getattr(grids[0], name))
+
+
+def test_compiled_grid_is_chosen_for_long_paths_only(monkeypatch: pytest.MonkeyPatch) -> None:
+    """By default the compiled loop cuts paths of COMPILED_STEPS steps or more, and every path
+    once it is loaded; a short path in a fresh process keeps the numpy update (no 0.4 s load)."""
+    import planner._zmap_grid as zg
+
+    steps = zg.Steps(np.zeros((3, 3)), np.ones(3, bool))
+    grid = zg.HeightGrid((0.0, 0.0, 0.01, 0.01), 1e-3, 0.0, DEPTH_TOL, steps)
+    monkeypatch.setattr(zg, "_KERNEL", "planner._not_loaded")
+    grid.plan(np.arange(3), R)
+    assert not grid._compiled
+    monkeypatch.setattr(zg, "COMPILED_STEPS", 3)
+    grid.plan(np.arange(3), R)
+    assert grid._compiled
+
+
+def test_compiled_and_numpy_engagement_agree_bit_for_bit(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The demo contour sampled every 0.5 mm (~3,000 steps, sloped lead-ins, both levels): the
+    engagement read from the compiled grid is the numpy grid's, bit for bit."""
+    import tomllib
+    from importlib import resources
+
+    import planner._zmap_grid as zg
+    from planner.job import parse_job
+    from planner.path import sample_toolpath
+    from planner.prepare import read_job_toolpaths, tool_of
+
+    demo = resources.files("planner").joinpath("data/demo/demo_job.toml")
+    doc = tomllib.loads(demo.read_text(encoding="utf-8"))
+    doc["path"]["step_max_mm"] = 0.5
+    job = parse_job(doc, str(demo), Path(str(demo)).parent)
+    si = job.to_si()
+    path_ = sample_toolpath(list(read_job_toolpaths(job, si.chord_tol)), np.eye(4), si.chord_tol,
+                            si.step_max)
+    stock = Stock.box(*si.stock_box, *si.stock_z)
+    args = (path_.position_wp, path_.tool_axis_wp, path_.cutting, tool_of(job).radius, stock)
+    results = []
+    for threshold, kernel in ((10**12, "planner._not_loaded"), (0, zg._KERNEL)):
+        monkeypatch.setattr(zg, "COMPILED_STEPS", threshold)
+        monkeypatch.setattr(zg, "_KERNEL", kernel)
+        results.append(zmap_engagement(*args, where=path_.where))
+    numpy_, compiled = results
+    assert np.sum(numpy_.mode >= 0) > 2_000
+    for name in ("a_e", "a_p", "mode", "radial_dir", "engaged_angle", "phi_st", "phi_ex"):
+        if hasattr(numpy_, name):
+            np.testing.assert_array_equal(getattr(compiled, name), getattr(numpy_, name))
+    assert compiled.warnings == numpy_.warnings
 
 
 def test_fine_sampling_reads_what_the_level_above_removed() -> None:
