@@ -1,6 +1,7 @@
 # Two commands on a fresh machine with Python 3.11 and make:  make demo  /  make test
 # More: make bench (benchmarks → docs/performance.md), make docs (the manual, --strict, into out/site),
-#       make picture (the README's image, docs/img/plan_along_path.png), make clean.
+#       make picture (the README's image, docs/img/plan_along_path.png), make clean,
+#       make fuzz (every parser's fuzz target for FUZZ_MINUTES each, corpus kept in fuzz/).
 PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV   := .venv
 PY     := $(VENV)/bin/python
@@ -8,8 +9,10 @@ STAMP  := $(VENV)/.installed
 TSTAMP := $(VENV)/.installed-test
 DSTAMP := $(VENV)/.installed-docs
 SITE   := out/site
+FUZZ_MINUTES ?= 10
+FUZZ_JOBS ?= 1
 
-.PHONY: demo test bench docs picture clean
+.PHONY: demo test fuzz bench docs picture clean
 
 $(PY):
 	@test -n "$(PYTHON)" || { echo "need python3.11 (or python3 >= 3.11) on PATH"; exit 1; }
@@ -33,6 +36,12 @@ demo: $(STAMP)
 
 test: $(TSTAMP)
 	$(PY) -m pytest
+
+# The fuzz targets of tests/fuzz_targets.py (each reader, the job and plan loaders, each wire
+# parser) for FUZZ_MINUTES minutes each; the corpus and any failing inputs stay in fuzz/. Exits
+# non-zero when an input broke a target's rule; the table is also in fuzz/last_run.md.
+fuzz: $(TSTAMP)
+	$(PY) tests/fuzz_run.py --minutes $(FUZZ_MINUTES) --jobs $(FUZZ_JOBS)
 
 # Every benchmark; writes out/benchmarks.md, docs/performance.md and the table of docs/validation.md.
 bench: $(STAMP)

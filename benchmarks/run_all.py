@@ -17,7 +17,10 @@
 - ``engagement_speed.py``: the Z-map engagement against the 2.5-D model (ms per sample, share of
   the planning wall time, agreement, a_p in the Fusion 360 program's helical bores);
 - ``feed_intent.py``: what the programmed-feed rules change on the demo (round one's air/plunge
-  rule as the baseline, then air as programmed, the tool's chip load, the CAM-feed factor).
+  rule as the baseline, then air as programmed, the tool's chip load, the CAM-feed factor);
+- ``placement.py``: a placement study of the demo serial against a LocalCluster of 2 workers,
+  per-placement cost, scheduler overhead per task, the screen's pruning, best vs own ``$BASE``
+  (and the sizing estimate of ``docs/placement.md``, its marked block).
 
 The summary table is printed; ``out/benchmarks.md`` holds it followed by every full table. The
 manual's pages are written from the same run, never pasted: ``docs/performance.md`` whole (an
@@ -61,6 +64,8 @@ PERFORMANCE_PAGE = DOCS / "performance.md"
 VALIDATION_PAGE = DOCS / "validation.md"
 #: The generated block of docs/validation.md (the thesis figures table of the latest run).
 FIGURES_START, FIGURES_END = "<!-- thesis-figures:start -->", "<!-- thesis-figures:end -->"
+PLACEMENT_PAGE = DOCS / "placement.md"
+SIZING_START, SIZING_END = "<!-- placement-sizing:start -->", "<!-- placement-sizing:end -->"
 
 #: The first paragraph of docs/performance.md. No figure in it: figures come from the run below.
 PAGE_INTRO = """\
@@ -119,6 +124,12 @@ the share is of the whole `plan_job` wall time of the same job. See
 The baseline is round one's rule for the moves that do not cut (air at `feed_max`, a plunge's feed
 over its whole air run), emulated on this run's plan and re-timed; then each round-two rule in
 turn. Every plan passes the independent checker. See [Feed planning](planner.md).""",
+    "placement": """\
+The baseline is the same placement study run serially in this process; the LocalCluster's workers
+are warmed up first (one plan each) and its results must equal the serial ones row for row before
+the time counts. The scheduler overhead is the end-to-end cost of a task that does nothing, through
+the same engine. See [Cell placement](placement.md) for the sizing estimate drawn from these
+figures.""",
     "krl": """\
 Write → lint → read back with our own KRL reader. "Absorbed" samples are plan samples inside a
 CIRC; their distance is to the read-back arc. See [KRL export](krl.md).""",
@@ -228,6 +239,20 @@ def feed_intent_rows(r: dict) -> list[tuple[str, str, str, str]]:
              f"{o['round_one']['cycle_time_s']:.1f} → {o['demo_factor_2']['cycle_time_s']:.1f} s "
              f"(default factor 1: {o['default_factor_1']['cycle_time_s']:.1f} s)",
              "every plan checked clean", _verdict(ok))]
+
+
+def placement_rows(r: dict) -> list[tuple[str, str, str, str]]:
+    cl, sc, bo = r["cluster"], r["screen"], r["best_vs_own"]
+    return [
+        ("placement: demo study, LocalCluster(2) vs serial",
+         f"{cl['speedup']:.2f}× ({r['grid']['plans']} plans; identical results); "
+         f"{r['scheduler']['per_task_ms']:.2f} ms a trivial task", "≥ 1.7×",
+         _verdict(cl["speedup"] >= 1.7)),
+        ("placement: demo best $BASE vs its own (cycle)",
+         f"{bo['refined_best_cycle_s']:.1f} s vs {bo['own_cycle_s']:.1f} s (grid best "
+         f"{bo['grid_best_cycle_s']:.1f} s); the screen pruned {100 * sc['pruning_ratio']:.0f} %",
+         "the screen keeps the full grid's best", _verdict(sc["kept_full_grid_best"])),
+    ]
 
 
 def krl_rows_summary(krl_rows: list[dict]) -> list[tuple[str, str, str, str]]:
@@ -370,11 +395,14 @@ def main(argv: list[str] | None = None) -> tuple[str, bool]:
 
     krl = Step("krl", "KRL export round trip (`benchmarks/krl_round_trip.py`)").run(
         log, krl_run, lambda r: r[1], lambda r: krl_rows_summary(r[0]))
+    placement = Step("placement", "Placement studies on Dask (`benchmarks/placement.py`)").run(
+        log, lambda: _module("placement").run(log),
+        lambda r: _module("placement").markdown(r), placement_rows)
 
     # Summary order: throughput, thesis figures, links, toolpath, engagement, planner, feed intent,
     # KRL, supervisor, dynamics.
     steps = [throughput_step, figures, links, toolpath, engagement, planner, intent, krl,
-             supervisor, dynamics]
+             supervisor, dynamics, placement]
     failed = [st for st in steps if st.error is not None]
     rows = [row for st in steps for row in st.rows]
     rows += [(f"{st.title}", "failed: see its section", "—", "not run") for st in failed]
@@ -382,7 +410,7 @@ def main(argv: list[str] | None = None) -> tuple[str, bool]:
     table = summary_table(rows, machine)
     total = f"_Total wall time {time.perf_counter() - t0:.0f} s._"
     sections = [throughput_step, toolpath, engagement, links, supervisor, dynamics, planner,
-                intent, krl]
+                intent, krl, placement]
     doc = "\n\n".join([
         "# cctmill benchmarks",
         "## Summary", table,
@@ -402,6 +430,10 @@ def main(argv: list[str] | None = None) -> tuple[str, bool]:
             print(f"wrote {VALIDATION_PAGE} (thesis figures)")
         else:
             log(f"note: {VALIDATION_PAGE} has no {FIGURES_START} … {FIGURES_END} block; not changed")
+        if placement.error is None and replace_block(
+                PLACEMENT_PAGE, SIZING_START, SIZING_END,
+                placement.markdown + "\n\n" + _module("placement").sizing_markdown(placement.result)):
+            print(f"wrote {PLACEMENT_PAGE} (sizing estimate)")
     for st in failed:
         log(f"FAILED: {st.title}: {st.error}")
     return doc, not failed

@@ -31,6 +31,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     "planner.limits": ("Limits",),
     "planner.optimize": ("PlanSolverError",),
     "planner.outputs": ("KrlOptions", "PlanOutputs", "run_plan_job", "write_plan_outputs"),
+    "planner.place.engine": ("EngineError",),
     "planner.plan": ("PlanInfeasibleError", "PlanResult", "plan_job", "plan_of_result", "plan_prepared"),
     "planner.plan_file": ("Plan", "PlanFileError", "PlanSamples", "PlanSection", "load_plan"),
     "planner.prepare": ("Prepared", "prepare"),

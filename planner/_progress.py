@@ -18,8 +18,10 @@ __all__ = ["MIN_TOTAL", "bar"]
 MIN_TOTAL = 2000
 
 
-def bar(total: int, desc: str, enabled: bool, unit: str = "sample") -> Any:
-    """A tqdm bar (a no-op one when ``enabled`` is false or ``total`` is small)."""
+def bar(total: int, desc: str, enabled: bool, unit: str = "sample",
+        min_total: int = MIN_TOTAL) -> Any:
+    """A tqdm bar (a no-op one when ``enabled`` is false or ``total`` is below ``min_total``: a
+    placement study, whose items take seconds each, passes 1)."""
     return tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, leave=False,
-                disable=not (enabled and total >= MIN_TOTAL and sys.stderr.isatty()),
+                disable=not (enabled and total >= min_total and sys.stderr.isatty()),
                 dynamic_ncols=True, mininterval=0.2)

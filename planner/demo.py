@@ -112,6 +112,7 @@ def run_demo_job(out: Path) -> DemoResult:
     from planner.prepare import inspect_job, prepare
     from planner.report.html import ReportRenderError, render_screenshot
     from planner.report.plots import plot_path_kinematics
+    from planner.supervisor.metrics import episode_outcome_text, episode_timing_text
 
     res_out = DemoResult()
     job = load_job(demo_job_file())
@@ -155,6 +156,8 @@ def run_demo_job(out: Path) -> DemoResult:
         "deflection_normal_max_mm": float(abs(ev.deflection_normal).max() * 1e3),
         "force_max_N": float(ev.force.max()), "sections": len(res.plan_sections),
         "chatter_episodes_caught": len(episodes),
+        "chatter_episodes_escalated": sum(e.get("outcome") == "escalated" for e in episodes),
+        "operator_alarms": len(sup["summary"].alarms),
         "chatter_detection_delay_ms": [e.get("detection_delay_ms") for e in episodes],
         "chatter_settling_ms": [e.get("settling_ms") for e in episodes],
     }
@@ -169,17 +172,10 @@ def run_demo_job(out: Path) -> DemoResult:
         f"{sup['scenario']}; "
         f"{len(episodes)} chatter episode(s) caught"
         + "".join(f"; section {e['section']}: override {e['override_start']:.0f} -> "
-                  f"{e['override_min']:.0f} %, " + _episode_timing(e) for e in episodes))
+                  f"{e['override_min']:.0f} % (direction {e['direction']:+d}), "
+                  f"{episode_timing_text(e)}; {episode_outcome_text(e)}" for e in episodes)
+        + f"; {len(sup['summary'].alarms)} operator alarm(s)")
     return res_out
-
-
-def _episode_timing(e: dict[str, Any]) -> str:
-    delay, settle = e.get("detection_delay_ms"), e.get("settling_ms")
-    seen = ("alarm before the simulated chatter reached the visible amplitude (a transient, "
-            "not chatter)" if delay is None
-            else f"detected {delay:.0f} ms after the chatter became visible")
-    gone = "" if settle is None else f", gone {settle:.0f} ms after the alarm"
-    return seen + gone
 
 
 #: Files of the supervised run, in the demo's output folder.
@@ -189,7 +185,9 @@ SUPERVISE_PLOT = "supervise.png"
 #: says, so that its planned feed chatters and this fraction of it does not.
 DEMO_ONSET_S = 1.5
 DEMO_STABLE_FRACTION = 0.7
-DEMO_DURATION_S = 5.0
+#: Long enough for every episode of the demo's scenario to end by the policy itself (resolved, or
+#: escalated at the floor about 1 s after a reversal), not by the end of the run [s].
+DEMO_DURATION_S = 6.5
 #: The demo's chatter section runs at least this fast [m/s].
 DEMO_FEED_MIN = 5e-3
 
@@ -253,8 +251,8 @@ def supervise_demo(plan: Plan, out: Path) -> dict[str, Any]:
                            plot=str(out / SUPERVISE_PLOT))
     scenario = CutScenario(onset_s=DEMO_ONSET_S, boundary_shift=1.0, margin_offset_N_per_m=offset)
     summary = supervise(plan, "sim", "sim", config, scenario)
-    return {"summary": summary, "section": sec.index, "start_mm": start * 1e3,
+    return {"summary": summary, "section": sec.number, "start_mm": start * 1e3,
             "scenario": f"from t = {DEMO_ONSET_S:g} s the arm is {offset:.3g} N/m less stable "
                         f"than the model (which puts the boundary at {DEMO_STABLE_FRACTION:.0%} of "
-                        f"the planned feed in section {sec.index}; the sections after it "
+                        f"the planned feed in section {sec.number}; the sections after it "
                         "have margins of their own)"}

@@ -139,12 +139,12 @@ def fixed_engagement(n: int, a_e: Any, a_p: Any, mode: Any, feed_dirs: Any, tool
         raise InputError("feed_dirs", f"sample {bad[0]} cuts but has no feed direction (zero vector)")
     bad = np.flatnonzero(cut & ~((ae > 0) & np.isfinite(ae) & (ap > 0) & np.isfinite(ap)))
     if bad.size:
-        raise InputError("engagement", f"sample {bad[0]}: a_e ({ae[bad[0]]!r} m) and a_p "
-                         f"({ap[bad[0]]!r} m) must be positive")
+        raise InputError("engagement", f"sample {bad[0]}: a_e ({ae[bad[0]]:g} m) and a_p "
+                         f"({ap[bad[0]]:g} m) must be positive")
     angle = np.where(codes == _SLOT, math.pi, np.nan)
     if tool_radius is not None:
         if not (math.isfinite(tool_radius) and tool_radius > 0):
-            raise InputError("tool_radius", f"must be positive [m], got {tool_radius!r}")
+            raise InputError("tool_radius", f"must be positive [m], got {tool_radius:g}")
         two_r = 2.0 * tool_radius
         bad = np.flatnonzero(cut & (ae > two_r * (1 + _DIAMETER_RTOL)))
         if bad.size:

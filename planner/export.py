@@ -4,7 +4,8 @@
 :func:`export_plan` also writes the files (atomically, all or nothing). What is emitted:
 
 * the BCO run to the first sample's joint angles (``q_rad[0]``), as a joint-space PTP;
-* per plan section (in order; KRL numbers them 1, 2, … in the fold titles and feed names): its
+* per plan section (in order; the fold titles, feed names and comments number them 1, 2, … as
+  plan.json, the report and the supervisor's log do): its
   feed as ``$VEL.CP`` [m/s], rounded **down** to :data:`FEED_RESOLUTION_M_S` (exactly, on the
   float's decimal value) so the ``.dat`` literal stays short and the feed never exceeds the plan's;
   then one LIN to every
@@ -235,7 +236,7 @@ def plan_to_krl(plan: Plan | str | os.PathLike, name: str | None = None,
     for k, sec in enumerate(secs):
         a, b = sec.sample_start, sec.sample_stop
         if a != expect or b <= a or b > n:
-            raise ExportError(f"{where}: section {sec.index} covers samples "
+            raise ExportError(f"{where}: section {sec.number} covers samples "
                               f"{a}..{b}, expected to start at {expect} and end by {n}; the "
                               "sections must partition the samples")
         expect = b
@@ -250,7 +251,7 @@ def plan_to_krl(plan: Plan | str | os.PathLike, name: str | None = None,
                                 "defl max", "mm")):
             if v is not None and math.isfinite(v):
                 extra.append(f"{label} {v:.4g} {unit}")
-        comment = "; ".join(x for x in (f"plan section {sec.index}", place, ", ".join(extra)) if x)
+        comment = "; ".join(x for x in (f"plan section {sec.number}", place, ", ".join(extra)) if x)
         sections.append(KrlSection(_feed_m_s(sec.feed, sec.kind), sec.kind, sec.binding or "",
                                    comment))
         i = a

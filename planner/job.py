@@ -3,9 +3,13 @@
 Validated with pydantic; every problem is reported in the user's terms — the table and key, what is
 wrong, how to fix it — and all problems at once. Units are part of the key names
 (``feed_max_mm_s``, ``tcp_mm``, ``base_abc_deg``); a key with a different unit suffix is an unknown
-key and the message suggests the known one. Everything is converted to SI once, by
-:meth:`Job.to_si` (and :meth:`planner.limits.Limits.from_job` for the limits), never inside the
-models.
+key and the message suggests the known one. Types are strict: a number in quotes (``rpm = "4000"``)
+is refused, not converted; a length or rate far beyond any milling value (:data:`SANE_MAX`) is a
+unit slip and refused with what to type; the seed joints are checked against the robot's limits.
+Everything is converted to SI once, by :meth:`Job.to_si` (and
+:meth:`planner.limits.Limits.from_job` for the limits), never inside the models.
+The tables' models live in :mod:`planner.job_schema` (handed on here); this module reads the
+file, says each problem in the user's terms and generates the key reference.
 
 Example (see ``planner/data/demo/demo_job.toml`` for a complete one)::
 
@@ -32,16 +36,32 @@ from __future__ import annotations
 import difflib
 import json
 import tomllib
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import ValidationError
 
-from models.errors import CctmillError
-from models.robot import DEFAULT_ROBOT
-from robot_io.krl.frames import frame_from_mm_deg
+from models.errors import CctmillError, UnknownDataError
+from models.robot import load_robot
+from planner.job_schema import (
+    SANE_MAX,
+    TABLES,
+    CellSection,
+    EngagementSection,
+    Job,
+    JobSection,
+    JobSI,
+    KinematicsSection,
+    LimitsSection,
+    ModelSection,
+    PathSection,
+    PlanSettings,
+    SaneMax,
+    SpindleSection,
+    StockSection,
+    ToolSection,
+)
 
 __all__ = [
     "CellSection",
@@ -57,6 +77,8 @@ __all__ = [
     "ModelSection",
     "PathSection",
     "PlanSettings",
+    "SANE_MAX",
+    "SaneMax",
     "SpindleSection",
     "StockSection",
     "ToolSection",
@@ -64,11 +86,6 @@ __all__ = [
     "parse_job",
     "reference_markdown",
 ]
-
-Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
-Vec6 = Annotated[list[float], Field(min_length=6, max_length=6)]
-PosFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 
 
 class JobError(CctmillError):
@@ -86,298 +103,6 @@ class JobError(CctmillError):
             super().__init__(f"{file}: {problems[0]}")
         else:
             super().__init__(f"{file}: {len(problems)} problems:\n  " + "\n  ".join(problems))
-
-
-class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
-
-
-class JobSection(_Section):
-    """``[job]``: name and toolpath files."""
-
-    name: str = "job"
-    toolpath: list[str] = Field(min_length=1)
-    strict: bool = True
-    format: Literal["gcode", "apt", "krl"] | None = None
-    units: Literal["mm", "inch"] | None = None
-    rotary: Literal["none", "xyzac-trunnion", "xyzbc-trunnion"] | None = None
-    apply_frames: bool = False
-    circle_direction: Literal["auto", "ccw", "cw"] | None = None
-    initial_position_mm: Vec3 | None = None
-    arc_radius_tol_mm: PosFloat | None = None
-
-    def reader_options(self) -> dict[str, Any]:
-        """The reader options this table sets (SI), for every format; ``planner.prepare`` hands
-        each file the ones its format has."""
-        out: dict[str, Any] = {}
-        if self.units is not None:
-            out["default_units"] = self.units
-        if self.rotary is not None:
-            out["rotary"] = self.rotary
-        if self.apply_frames:
-            out["apply_frames"] = True
-        if self.circle_direction is not None:
-            out["circle_direction"] = self.circle_direction
-        if self.initial_position_mm is not None:
-            out["initial_position"] = tuple(v * 1e-3 for v in self.initial_position_mm)
-        if self.arc_radius_tol_mm is not None:
-            out["arc_radius_tol"] = self.arc_radius_tol_mm * 1e-3
-        return out
-
-    @model_validator(mode="before")
-    @classmethod
-    def _one_path(cls, data: Any) -> Any:
-        if isinstance(data, dict) and isinstance(data.get("toolpath"), str):
-            data = {**data, "toolpath": [data["toolpath"]]}
-        return data
-
-
-class CellSection(_Section):
-    """``[cell]``: robot, ``$BASE`` (workpiece frame in the robot base) and ``$TOOL`` (TCP)."""
-
-    robot: str = DEFAULT_ROBOT
-    base_mm: Vec3 = [0.0, 0.0, 0.0]
-    base_abc_deg: Vec3 = [0.0, 0.0, 0.0]
-    tcp_mm: Vec3 = [0.0, 0.0, 0.0]
-    tcp_abc_deg: Vec3 = [0.0, 0.0, 0.0]
-    joint_stiffness_scale: PosFloat = 1.0
-
-
-class ToolSection(_Section):
-    """``[tool]``: a tool data file, optionally overridden."""
-
-    name: str = "em25_2f"
-    diameter_mm: PosFloat | None = None
-    flutes: Annotated[int, Field(ge=1, le=12)] | None = None
-
-
-class SpindleSection(_Section):
-    """``[spindle]``: speed, mass and power."""
-
-    rpm: PosFloat = 1000.0
-    mass_kg: NonNegFloat | None = None
-    com_mm: Vec3 | None = None
-    power_max_kw: PosFloat = 10.0
-
-
-class LimitsSection(_Section):
-    """``[limits]``: what no section may exceed."""
-
-    force_max_n: PosFloat = 300.0
-    deflection_tol_mm: PosFloat = 0.1
-    feed_min_mm_s: PosFloat = 0.1
-    feed_max_mm_s: PosFloat = 50.0
-    feed_change_max_mm_s: PosFloat | None = None
-    margin_min_n_per_m: NonNegFloat = 0.0
-    section_length_min_mm: PosFloat = 10.0
-    path_acc_max_m_s2: PosFloat = 1.0
-    path_jerk_max_m_s3: PosFloat = 10.0
-    rapid_mm_s: PosFloat = 250.0
-    cam_feed_scale_max: PosFloat = 1.0
-
-    @model_validator(mode="after")
-    def _feed_range(self) -> LimitsSection:
-        if self.feed_min_mm_s >= self.feed_max_mm_s:
-            raise ValueError("feed_min_mm_s must be below feed_max_mm_s")
-        if self.feed_max_mm_s > self.rapid_mm_s:
-            raise ValueError(
-                f"feed_max_mm_s {self.feed_max_mm_s:g} is above rapid_mm_s {self.rapid_mm_s:g}: "
-                f"the keys are in mm/s ({self.feed_max_mm_s:g} mm/min would be "
-                f"{self.feed_max_mm_s / 60:g} mm/s)")
-        return self
-
-
-class StockSection(_Section):
-    """``[engagement.stock]``: a prismatic stock in the workpiece frame, and the Z-map's cell."""
-
-    box_mm: Annotated[list[float], Field(min_length=4, max_length=4)] | None = None
-    outline_mm: list[Annotated[list[float], Field(min_length=2, max_length=2)]] | None = None
-    z_bottom_mm: float
-    z_top_mm: float
-    zmap_cell_mm: PosFloat | None = None
-
-    def zmap_cell(self) -> float | None:
-        """The Z-map cell size [m], or None for the default (:func:`planner.zmap.default_cell`)."""
-        return None if self.zmap_cell_mm is None else self.zmap_cell_mm * 1e-3
-
-    @model_validator(mode="after")
-    def _shape(self) -> StockSection:
-        if (self.box_mm is None) == (self.outline_mm is None):
-            raise ValueError("give exactly one of box_mm = [xmin, ymin, xmax, ymax] or outline_mm")
-        if self.box_mm is not None and not (self.box_mm[0] < self.box_mm[2]
-                                            and self.box_mm[1] < self.box_mm[3]):
-            raise ValueError("box_mm must be [xmin, ymin, xmax, ymax] with min < max")
-        if self.outline_mm is not None and len(self.outline_mm) < 3:
-            raise ValueError("outline_mm needs at least 3 points")
-        if not self.z_top_mm > self.z_bottom_mm:
-            raise ValueError("z_top_mm must be above z_bottom_mm")
-        return self
-
-
-class EngagementSection(_Section):
-    """``[engagement]``: per operation (``fixed``) or from a stock model: ``zmap`` (3-axis height
-    map, the default when an ``[engagement.stock]`` table is given) or ``stock`` (2.5-D levels)."""
-
-    source: Literal["fixed", "stock", "zmap"] | None = None
-    ae_mm: PosFloat | None = None
-    ap_mm: PosFloat | None = None
-    milling: Literal["up", "down", "slot"] = "down"
-    stock: StockSection | None = None
-
-    @model_validator(mode="before")
-    @classmethod
-    def _default_source(cls, data: Any) -> Any:
-        if isinstance(data, dict) and data.get("source") is None:
-            data = {**data, "source": "fixed" if data.get("stock") is None else "zmap"}
-        return data
-
-    @model_validator(mode="after")
-    def _complete(self) -> EngagementSection:
-        if self.source == "fixed" and (self.ap_mm is None or
-                                       (self.ae_mm is None and self.milling != "slot")):
-            raise ValueError("fixed engagement needs ae_mm and ap_mm (slot: ap_mm only)")
-        if self.source in ("stock", "zmap") and self.stock is None:
-            raise ValueError(f"source = {self.source!r} needs an [engagement.stock] table")
-        return self
-
-
-class ModelSection(_Section):
-    """``[model]``: the physics choices and calibration knobs (docs/model.md §5)."""
-
-    process_model: Literal["thesis", "oriented"] = "thesis"
-    mass_model: Literal["isotropic", "robot"] = "isotropic"
-    chatter_criterion: Literal["eigen", "floquet", "gamma_window"] = "eigen"
-    gamma_window_deg: Annotated[list[float], Field(min_length=2, max_length=2)] = [-90.0, 90.0]
-    process_gain: PosFloat = 1.0
-    cct: bool = True
-
-
-class PlanSettings(_Section):
-    """``[plan]``: how ``cctmill plan`` chooses sections and feeds."""
-
-    method: Literal["optimize", "thesis", "constant"] = "optimize"
-    safety_factor: Annotated[float, Field(ge=1.0, allow_inf_nan=False)] = 1.1
-    thesis_section_length_mm: PosFloat = 100.0
-    section_change_cost_s: NonNegFloat = 0.02
-
-
-class PathSection(_Section):
-    """``[path]``: sampling of the toolpath."""
-
-    chord_tol_mm: PosFloat = 0.01
-    step_max_mm: PosFloat = 2.0
-
-
-class KinematicsSection(_Section):
-    """``[kinematics]``: inverse kinematics along the path."""
-
-    seed_joints_deg: Vec6 | None = None
-    tool_rotation: Literal["free", "fixed"] = "free"
-    tool_rotation_deg: float = 0.0
-    choose_for_stiffness: bool = False
-
-
-class Job(_Section):
-    """A whole job file, validated. ``folder`` is where relative paths resolve."""
-
-    job: JobSection
-    cell: CellSection = CellSection()
-    tool: ToolSection = ToolSection()
-    material: Annotated[str, Field(min_length=1)] = "al6061"
-    spindle: SpindleSection = SpindleSection()
-    limits: LimitsSection = LimitsSection()
-    engagement: EngagementSection
-    model: ModelSection = ModelSection()
-    plan: PlanSettings = PlanSettings()
-    path: PathSection = PathSection()
-    kinematics: KinematicsSection = KinematicsSection()
-    folder: str = "."
-
-    def toolpath_files(self) -> list[Path]:
-        """Absolute toolpath paths (relative ones resolve against the job file's folder)."""
-        return [(Path(self.folder) / p).resolve() for p in self.job.toolpath]
-
-    def base_frame(self) -> np.ndarray:
-        """``$BASE`` as a 4×4 homogeneous transform (workpiece → robot base), SI."""
-        return frame_from_mm_deg(self.cell.base_mm, self.cell.base_abc_deg)
-
-    def tool_frame(self) -> np.ndarray:
-        """``$TOOL`` as a 4×4 homogeneous transform (TCP → flange), SI."""
-        return frame_from_mm_deg(self.cell.tcp_mm, self.cell.tcp_abc_deg)
-
-    def to_si(self) -> JobSI:
-        """The job's numbers in SI: the one place its mm, degrees and rpm are converted."""
-        from planner.limits import Limits
-
-        cell, kin, eng, spindle = self.cell, self.kinematics, self.engagement, self.spindle
-        st = eng.stock
-        return JobSI(
-            base=self.base_frame(), tool=self.tool_frame(),
-            base_xyz=tuple(v * 1e-3 for v in cell.base_mm),
-            base_abc=tuple(float(np.radians(v)) for v in cell.base_abc_deg),
-            tool_xyz=tuple(v * 1e-3 for v in cell.tcp_mm),
-            tool_abc=tuple(float(np.radians(v)) for v in cell.tcp_abc_deg),
-            tcp=np.asarray(cell.tcp_mm) * 1e-3,
-            chord_tol=self.path.chord_tol_mm * 1e-3, step_max=self.path.step_max_mm * 1e-3,
-            seed_joints=(np.radians(kin.seed_joints_deg) if kin.seed_joints_deg is not None
-                         else None),
-            tool_rotation=np.radians(kin.tool_rotation_deg),
-            tool_radius=self.tool.diameter_mm * 5e-4 if self.tool.diameter_mm else None,
-            a_e=None if eng.ae_mm is None else eng.ae_mm * 1e-3,
-            a_p=None if eng.ap_mm is None else eng.ap_mm * 1e-3,
-            stock_box=(None if st is None or st.box_mm is None
-                       else tuple(v * 1e-3 for v in st.box_mm)),
-            stock_outline=(None if st is None or st.outline_mm is None
-                           else [(x * 1e-3, y * 1e-3) for x, y in st.outline_mm]),
-            stock_z=None if st is None else (st.z_bottom_mm * 1e-3, st.z_top_mm * 1e-3),
-            limits=Limits.from_job(self),
-            spindle_speed=spindle.rpm * 2.0 * np.pi / 60.0,
-            spindle_com=None if spindle.com_mm is None else np.asarray(spindle.com_mm) * 1e-3,
-            gamma_window=tuple(np.radians(self.model.gamma_window_deg)),
-            thesis_section_length=self.plan.thesis_section_length_mm * 1e-3)
-
-
-@dataclass(frozen=True)
-class JobSI:
-    """A job's numbers in SI (:meth:`Job.to_si`); names as in the job without their units.
-
-    Attributes:
-        base, tool: ``$BASE`` and ``$TOOL`` as 4×4 transforms [m]; base_xyz/base_abc and
-            tool_xyz/tool_abc the same as origin [m] (3,) and KUKA A, B, C [rad] (3,).
-        tcp: the TCP in the flange frame [m], (3,).
-        chord_tol, step_max: path sampling [m].
-        seed_joints: IK seed [rad], (6,) or None; tool_rotation: the fixed rotation about the
-            tool axis [rad].
-        tool_radius: the job's tool radius [m] (None: the tool data's).
-        a_e, a_p: fixed engagement [m] (None where not given).
-        stock_box (x0, y0, x1, y1) [m] or stock_outline [(x, y)] [m], stock_z (bottom, top) [m].
-        limits: the limits (:class:`planner.limits.Limits`).
-        spindle_speed [rad/s]; spindle_com [m] (3,) or None; gamma_window (lo, hi) [rad].
-        thesis_section_length: the thesis method's initial section length [m].
-    """
-
-    base: np.ndarray
-    tool: np.ndarray
-    base_xyz: tuple[float, ...]
-    base_abc: tuple[float, ...]
-    tool_xyz: tuple[float, ...]
-    tool_abc: tuple[float, ...]
-    tcp: np.ndarray
-    chord_tol: float
-    step_max: float
-    seed_joints: np.ndarray | None
-    tool_rotation: float
-    tool_radius: float | None
-    a_e: float | None
-    a_p: float | None
-    stock_box: tuple[float, ...] | None
-    stock_outline: list[tuple[float, float]] | None
-    stock_z: tuple[float, float] | None
-    limits: Any
-    spindle_speed: float
-    spindle_com: np.ndarray | None
-    gamma_window: tuple[float, ...]
-    thesis_section_length: float
 
 
 #: One line per key for the generated reference (a test checks every schema field has one).
@@ -447,9 +172,13 @@ KEY_DOCS: dict[str, str] = {
     "plan.thesis_section_length_mm": "thesis method: the initial section length L_s [mm]",
     "plan.section_change_cost_s": "optimize: time-equivalent cost of a feed change of feed_max "
                                   "[s] (fewer, longer sections)",
+    "plan.scheduler": "where placement studies and batch plans run: none (serial), local (a Dask "
+                      "cluster of this machine's cores) or tcp://HOST:PORT; --scheduler and "
+                      "$CCTMILL_SCHEDULER win (docs/placement.md)",
     "path.chord_tol_mm": "largest arc chord error [mm]",
     "path.step_max_mm": "largest distance between path samples [mm]",
-    "kinematics.seed_joints_deg": "joint angles to start the first IK solve from [deg]",
+    "kinematics.seed_joints_deg": "joint angles to start the first IK solve from [deg], within the "
+                                  "robot's joint limits",
     "kinematics.tool_rotation": "free: the rotation about the tool axis is chosen (continuity, "
                                 "limits); fixed: held at tool_rotation_deg",
     "kinematics.tool_rotation_deg": "rotation about the tool axis when fixed [deg]",
@@ -463,13 +192,16 @@ def reference_markdown() -> str:
     tables = [("(top level)", None, {"material": Job.model_fields["material"]})]
     for name in ("job", "cell", "tool", "spindle", "limits", "engagement", "stock", "model",
                  "plan", "path", "kinematics"):
-        model = _MODELS[name]
+        model = TABLES[name]
         tables.append(("[engagement.stock]" if name == "stock" else f"[{name}]", name,
                        model.model_fields))
     for title, prefix, fields in tables:
         out += [f"**{title}**", "", "| key | default | meaning |", "|---|---|---|"]
         for key, info in fields.items():
             doc = KEY_DOCS[f"{prefix}.{key}" if prefix else key]
+            sane = SANE_MAX.get(f"{prefix}.{key}")
+            if sane is not None:
+                doc += f"; at most {sane.bound:g} {sane.unit} ({sane.why})"
             default = "required" if info.is_required() else f"`{json.dumps(info.default)}`"
             if info.default is None:
                 default = "—"
@@ -478,27 +210,58 @@ def reference_markdown() -> str:
     return "\n".join(out).rstrip() + "\n"
 
 
-_MODELS = {"job": JobSection, "cell": CellSection, "tool": ToolSection,
-           "spindle": SpindleSection, "limits": LimitsSection, "engagement": EngagementSection,
-           "model": ModelSection, "plan": PlanSettings, "path": PathSection, "kinematics": KinematicsSection,
-           "stock": StockSection}
-
-
 def _known_keys(loc: tuple) -> list[str]:
     """Keys allowed at the table that contains ``loc[-1]``."""
     if len(loc) == 1:
         return [k for k in Job.model_fields if k != "folder"]
     table = str(loc[-2])
-    model = _MODELS.get(table)
+    model = TABLES.get(table)
     return list(model.model_fields) if model else []
+
+
+#: What a value of each type error should have been, in TOML's words.
+_EXPECTED = {"float_type": "a number", "int_type": "a whole number", "bool_type": "true or false",
+             "string_type": "a string in quotes", "list_type": "an array [...]",
+             "model_type": "a table", "model_attributes_type": "a table", "dict_type": "a table"}
+
+
+def _toml_value(v: Any) -> str:
+    """A parsed value as the user wrote it (strings quoted, booleans lower case, tables and arrays
+    by kind: their content can be long)."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return f"the string {json.dumps(v[:40] + ('…' if len(v) > 40 else ''), ensure_ascii=False)}"
+    if isinstance(v, dict):
+        return "a table"
+    if isinstance(v, list):
+        return "an array"
+    return repr(v)
+
+
+def _unquoted(kind: str, v: Any) -> bool:
+    """``v`` is a string that would be a valid number or boolean without its quotes."""
+    if not isinstance(v, str) or kind not in ("float_type", "int_type", "bool_type"):
+        return False
+    t = v.strip()
+    if kind == "bool_type":
+        return t in ("true", "false")
+    try:
+        x = float(t)
+    except ValueError:
+        return False
+    return np.isfinite(x) and (kind == "float_type" or x == int(x))
 
 
 def _describe(err: dict) -> str:
     loc = tuple(err["loc"])
-    where = ".".join(str(p) for p in loc[:-1])
-    key = str(loc[-1]) if loc else ""
+    names = [i for i, p in enumerate(loc) if isinstance(p, str)]
+    last = names[-1] if names else -1
+    where = ".".join(str(p) for p in loc[:last]) if last > 0 else ""
+    key = (str(loc[last]) if last >= 0 else "") + "".join(f"[{p}]" for p in loc[last + 1:])
     prefix = f"[{where}] {key}" if where else key
     kind = err["type"]
+    v = err.get("input")
     if kind == "extra_forbidden":
         known = _known_keys(loc)
         stem = key.rsplit("_", 2)[0] if "_" in key else key
@@ -510,12 +273,22 @@ def _describe(err: dict) -> str:
         return f"{prefix}: unknown key{hint}"
     if kind == "missing":
         return f"{prefix}: missing; add it"
+    if kind in _EXPECTED:
+        fix = ""
+        if _unquoted(kind, v):
+            fix = (f"; write it without quotes: {loc[last]} = {str(v).strip()}"
+                   if last == len(loc) - 1 else "; write the number without quotes")
+        return f"{prefix}: must be {_EXPECTED[kind]}, got {_toml_value(v)}{fix}"
+    sane = SANE_MAX.get(".".join(str(p) for p in loc[-2:]))
+    if kind == "less_than_equal" and sane is not None and isinstance(v, int | float):
+        return (f"{prefix}: {v:g} {sane.unit} is above {sane.bound:g} {sane.unit}: {sane.why}; "
+                + sane.fix.format(v=v, v_1e3=v / 1000, v_60=v / 60))
     if kind.startswith(("greater_than", "less_than")):
-        return f"{prefix}: {err['msg'].lower()} (got {err.get('input')!r})"
+        return f"{prefix}: {err['msg'].lower()} (got {v!r})"
     if kind == "value_error":
         return f"{'[' + '.'.join(str(p) for p in loc) + '] ' if loc else ''}" \
                f"{err['msg'].removeprefix('Value error, ')}"
-    return f"{prefix}: {err['msg']} (got {err.get('input')!r})"
+    return f"{prefix}: {err['msg']} (got {v!r})"
 
 
 #: Deepest nesting of tables and arrays a job file may have: the schema's deepest value is 5 levels
@@ -538,16 +311,38 @@ def _depth(doc: Any, limit: int) -> int:
 
 
 def parse_job(doc: dict, file: str = "<job>", folder: str | Path = ".") -> Job:
-    """Validate a parsed TOML document; raise :class:`JobError` listing every problem."""
+    """Validate a parsed TOML document; raise :class:`JobError` listing every problem (the robot's
+    data is checked once the schema holds: its name, the seed joints against its limits)."""
     if not isinstance(doc, dict):
         raise JobError(file, [f"not a job document (a TOML table), got {type(doc).__name__}"])
     if _depth(doc, MAX_DEPTH) > MAX_DEPTH:
         raise JobError(file, [f"tables and arrays nest more than {MAX_DEPTH} deep; a job file "
                               "needs at most 5 (see docs/job.md)"])
     try:
-        return Job.model_validate({**doc, "folder": str(folder)})
+        job = Job.model_validate({**doc, "folder": str(folder)})
     except ValidationError as e:
         raise JobError(file, [_describe(err) for err in e.errors()]) from None
+    problems = _robot_problems(job)
+    if problems:
+        raise JobError(file, problems)
+    return job
+
+
+def _robot_problems(job: Job) -> list[str]:
+    """What the robot's data refuses in a valid job: an unknown robot, seed joints outside their
+    limits (one line per joint)."""
+    try:
+        data = load_robot(job.cell.robot).data
+    except UnknownDataError as e:
+        return [f"[cell] robot: {e}"]
+    seed = job.kinematics.seed_joints_deg
+    if seed is None:
+        return []
+    lower, upper = np.degrees(data.lower), np.degrees(data.upper)
+    return [f"[kinematics] seed_joints_deg: {name} = {q:g} deg is outside its limits "
+            f"{lo:g} .. {hi:g} deg ({data.name}); give a seed within them"
+            for name, q, lo, hi in zip(data.joint_names, seed, lower, upper, strict=True)
+            if not lo <= q <= hi]
 
 
 def load_job(path: str | Path) -> Job:

@@ -38,6 +38,7 @@ from planner.sections import CUT, Section
 __all__ = [
     "MAX_ITERATIONS",
     "MERGE_TOL",
+    "NOT_SOLVED",
     "PlanSolverError",
     "SolveResult",
     "optimize_sections",
@@ -52,6 +53,9 @@ IPOPT_TOL = 1e-9
 AT_CEILING = 1e-3
 #: IPOPT iteration limit (the convex sectioning problem needs 20–40).
 MAX_ITERATIONS = 500
+#: The status of a plan whose feeds no NLP chose (thesis and constant methods, a path without cut
+#: samples); :attr:`SolveResult.note` says why.
+NOT_SOLVED = "n/a"
 #: Statuses that count as converged.
 _CONVERGED = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 
@@ -79,12 +83,14 @@ class SolveResult:
     """What the solver did (qpsolvers-style: success, status, iterations, times recorded apart).
 
     Attributes:
-        status: IPOPT return status (``"n/a"`` for methods that do not solve an NLP).
+        status: IPOPT return status (:data:`NOT_SOLVED` when no NLP was solved).
         success: converged.
         iterations: IPOPT iterations.
         build_time: time to build the NLP and the solver [s].
         solve_time: time inside IPOPT [s].
         objective: the scaled objective at the optimum [-].
+        note: when no NLP was solved, why not, for people ("the thesis section algorithm sets
+            the feeds").
     """
 
     status: str
@@ -93,6 +99,16 @@ class SolveResult:
     build_time: float
     solve_time: float
     objective: float
+    note: str = ""
+
+    def describe(self) -> str:
+        """What the solver did, in words: IPOPT's status, iterations and times, or why no
+        optimisation ran (never "n/a (0 iterations)")."""
+        if self.status == NOT_SOLVED:
+            return self.note or "no optimisation"
+        return (f"IPOPT {self.status} after {self.iterations} iteration"
+                f"{'s' if self.iterations != 1 else ''} (build {self.build_time:.3f} s, solve "
+                f"{self.solve_time:.3f} s)")
 
     def as_json(self) -> dict:
         return {"status": self.status, "success": self.success, "iterations": self.iterations,
@@ -134,7 +150,8 @@ def optimize_sections(runs: list[tuple[int, int, int]], ds: np.ndarray, ceiling:
     cells = [c for g in groups for c in g]
     nc = len(cells)
     if nc == 0:
-        return [], SolveResult("n/a", True, 0, 0.0, 0.0, 0.0)
+        return [], SolveResult(NOT_SOLVED, True, 0, 0.0, 0.0, 0.0,
+                               "no optimisation needed: the path has no cut samples")
     length = np.array([ds[a:b].sum() for a, b in cells])
     total = max(float(length.sum()), 1e-12)
     cap = np.array([np.nanmin(ceiling[a:b]) for a, b in cells])

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from planner._atomic import check_output, output_errors
 from planner.plan_file import Plan
 
 if TYPE_CHECKING:  # the pipeline loads the physics: imported where it runs
@@ -56,9 +57,15 @@ class PlanOutputs:
 
 
 def write_plan_outputs(res: PlanResult, folder: str | os.PathLike, report: bool = True,
-                       krl: KrlOptions | None = None) -> PlanOutputs:
+                       krl: KrlOptions | None = None,
+                       report_sections: tuple[str, ...] = ()) -> PlanOutputs:
     """Write plan.json and samples.npz, then (``report``) report.html and its PNGs, then (``krl``)
-    the KRL program, into ``folder``."""
+    the KRL program, into ``folder``.
+
+    Raises:
+        OutputError: a file cannot be written (names it).
+        ExportError, KrlError: the plan cannot be written as KRL (nothing of it is written).
+    """
     from planner.plan import plan_of_result
 
     plan = plan_of_result(res).save(folder)
@@ -67,24 +74,28 @@ def write_plan_outputs(res: PlanResult, folder: str | os.PathLike, report: bool 
     if report:
         from planner.report import write_report
 
-        out.files.update(write_report(res, folder))
+        out.files.update(write_report(res, folder, sections=report_sections))
     if krl is not None:
         from planner.export import export_plan
 
-        out.files["krl"] = export_plan(plan, folder, **krl.kwargs())
+        with output_errors(folder):     # the KRL writer's OSError, said as ours
+            out.files["krl"] = export_plan(plan, folder, **krl.kwargs())
     return out
 
 
 def run_plan_job(job: Job, folder: str | os.PathLike, method: str | None = None,
                  safety_factor: float | None = None, krl: KrlOptions | None = None,
                  progress: bool = False) -> PlanOutputs:
-    """Plan ``job`` and write everything :func:`write_plan_outputs` writes.
+    """Plan ``job`` and write everything :func:`write_plan_outputs` writes. ``folder`` is checked
+    first (:func:`planner._atomic.check_output`): a file in its place fails before the planning.
 
     Raises:
+        OutputError: ``folder`` cannot be written (checked before planning) or a file in it.
         PlanInfeasibleError, PlanSolverError, UnreachablePoseError: as :func:`plan_job`.
         ExportError, KrlError: the plan cannot be written as KRL (nothing of it is written).
     """
     from planner.plan import plan_job
 
+    check_output(folder, "folder")
     res = plan_job(job, method=method, safety_factor=safety_factor, progress=progress)
     return write_plan_outputs(res, folder, krl=krl)

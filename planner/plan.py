@@ -34,7 +34,7 @@ from planner.cam_feed import apply_cam_feed, cam_feed_caps, check_rapid_above_fe
 from planner.ceilings import CONSTRAINTS, Ceilings, Evaluation, PathModel
 from planner.job import Job
 from planner.limits import Limits
-from planner.optimize import SolveResult, optimize_sections
+from planner.optimize import NOT_SOLVED, SolveResult, optimize_sections
 from planner.partition import cut_time_bound, fastest_splits
 from planner.plan_file import KINDS, Plan, PlanSamples, PlanSection, SectionCharacteristic, SolverRecord
 from planner.prepare import Prepared, prepare
@@ -67,6 +67,7 @@ __all__ = [
     "METHODS",
     "PlanInfeasibleError",
     "PlanResult",
+    "check_feasible",
     "plan_job",
     "plan_of_result",
     "plan_prepared",
@@ -74,6 +75,14 @@ __all__ = [
 ]
 
 METHODS = ("optimize", "thesis", "constant")
+#: Threads of the ceilings' evaluation by default (:class:`planner.ceilings.PathModel`).
+DEFAULT_THREADS = 2
+#: What a method that solves no NLP does instead, in words (the report and ``cctmill plan``).
+_NO_OPTIMISATION = {
+    "optimize": "no optimisation needed: the path has no cut samples",
+    "thesis": "no optimisation: the thesis section algorithm sets the feeds",
+    "constant": "no optimisation: one constant feed, the lowest ceiling of the cut",
+}
 #: Feeds of each cut section's stored stability characteristic (log-spaced over the feed range).
 CHARACTERISTIC_FEEDS = 25
 
@@ -82,7 +91,8 @@ class PlanInfeasibleError(CctmillError):
     """No feed meets the limits somewhere on the path.
 
     Attributes:
-        section: index of the section (cell of ``section_length_min``) that cannot be planned.
+        section: position (from 0) of the section — a cell of ``section_length_min`` — that cannot
+            be planned; the message numbers it from 1, as plan.json and the KRL program do.
         constraint: the constraint that fails at the lowest feed.
         sample: the first failing sample.
     """
@@ -203,16 +213,43 @@ def _check_floor(prep: Prepared, model: PathModel, ceil: Ceilings, runs, ds, lim
     p = prep.path
     n_bad = bad.size
     raise PlanInfeasibleError(
-        f"section {cell} (s {p.s[cells[cell][0]]:.3f}-{p.s[cells[cell][1] - 1]:.3f} m, "
+        f"section {cell + 1} (s {p.s[cells[cell][0]]:.3f}-{p.s[cells[cell][1] - 1]:.3f} m, "
         f"{p.where(sample)}): {what} limit cannot be met even at feed_min_mm_s "
         f"{limits.feed_min * 1e3:g}: {detail}; a_e {e.a_e[sample] * 1e3:.2f} mm, a_p "
         f"{e.a_p[sample] * 1e3:.2f} mm ({n_bad} sample{'s' if n_bad > 1 else ''} affected)",
         section=cell, constraint=what, sample=sample)
 
 
+def _ceilings(prep: Prepared, limits: Limits | None, progress: bool,
+              threads: int = DEFAULT_THREADS) -> tuple[PathModel, Ceilings]:
+    """The path model and the feed ceilings of every cut sample (the process limits, the tool's
+    chip load, the programmed feed), after the checks that need no ceiling (reach, rapid speed,
+    spindle)."""
+    prep.kinematics.raise_if_unreachable()
+    model = PathModel(prep, limits=limits, threads=threads, progress=progress)
+    check_rapid_above_feed(model.limits)
+    spindle_speed = prep.job.to_si().spindle_speed
+    check_spindle_speed(prep.tool, spindle_speed)
+    caps = cam_feed_caps(prep.path, model.index, model.limits)
+    tool_cap = np.full(len(model), tool_feed_cap(prep.tool, spindle_speed))
+    return model, apply_cam_feed(apply_cam_feed(model.ceilings(), tool_cap, TOOL_BINDING), caps)
+
+
+def check_feasible(prep: Prepared, limits: Limits | None = None, progress: bool = False) -> None:
+    """Raise what :func:`plan_prepared` would raise before it optimises: an unreachable sample,
+    limits that contradict one another, or a limit no feed meets (:class:`PlanInfeasibleError`,
+    naming the section, the constraint and the sample). ``cctmill inspect`` runs it, so that a job
+    that cannot be cut fails there as it fails in ``plan``."""
+    model, ceil = _ceilings(prep, limits, progress)
+    path = prep.path
+    runs = kind_runs(sample_kinds(len(path), model.index, path.cutting))
+    _check_floor(prep, model, ceil, runs, step_lengths(path.s), model.limits)
+
+
 def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float | None = None,
                   limits: Limits | None = None, f_ref: float | None = None,
-                  thesis_every_sample: bool = True, progress: bool = False) -> PlanResult:
+                  thesis_every_sample: bool = True, progress: bool = False,
+                  threads: int = DEFAULT_THREADS) -> PlanResult:
     """Plan an already prepared job (see :func:`plan_job`).
 
     Args:
@@ -224,24 +261,18 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
         thesis_every_sample: the thesis baseline also holds at every sample (default); False
             runs it exactly as published (midpoints only), for comparison.
         progress: show progress bars on stderr (long jobs).
+        threads: threads of the ceilings' evaluation (the path model's mapped function).
     """
     if method not in METHODS:
         raise InputError("method", f"{method!r} is not one of {', '.join(METHODS)}")
     job = prep.job
     sf = job.plan.safety_factor if safety_factor is None else float(safety_factor)
     if not (np.isfinite(sf) and sf >= 1.0):
-        raise InputError("safety_factor", f"must be a number >= 1, got {sf}")
+        raise InputError("safety_factor", f"must be a number >= 1, got {sf:g}")
     walls: dict[str, float] = {}
     t = time.perf_counter()
-    prep.kinematics.raise_if_unreachable()
-    model = PathModel(prep, limits=limits, progress=progress)
+    model, ceil = _ceilings(prep, limits, progress, threads)
     limits = model.limits
-    check_rapid_above_feed(limits)
-    spindle_speed = job.to_si().spindle_speed
-    check_spindle_speed(prep.tool, spindle_speed)
-    caps = cam_feed_caps(prep.path, model.index, limits)
-    tool_cap = np.full(len(model), tool_feed_cap(prep.tool, spindle_speed))
-    ceil = apply_cam_feed(apply_cam_feed(model.ceilings(), tool_cap, TOOL_BINDING), caps)
     walls["ceilings_s"] = time.perf_counter() - t
     path = prep.path
     n = len(path)
@@ -258,7 +289,7 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
 
     t = time.perf_counter()
     splits = fastest_splits(runs, ds, ceiling, limits.section_length_min)
-    solver = SolveResult("n/a", True, 0, 0.0, 0.0, 0.0)
+    solver = SolveResult(NOT_SOLVED, True, 0, 0.0, 0.0, 0.0, _NO_OPTIMISATION[method])
     if method == "constant":
         f = float(np.nanmin(ceiling)) if len(model) else limits.feed_max
         tight = int(np.nanargmin(ceiling)) if len(model) else 0
@@ -295,7 +326,7 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
     cut_secs = [sec for sec in sections if sec.kind == CUT]
     warnings = [*prep.warnings, *getattr(prep.engagement, "warnings", ()),
                 *tool_warnings(prep.tool, load_material(job.material)),
-                *rubbing_warnings(prep.tool, spindle_speed, np.array([c.feed for c in cut_secs]),
+                *rubbing_warnings(prep.tool, job.to_si().spindle_speed, np.array([c.feed for c in cut_secs]),
                                   [(int(path.line[c.start]), int(path.line[c.stop - 1]))
                                    for c in cut_secs])]
     result = PlanResult(method=method, prep=prep, model=model, ceilings=ceil, sections=sections,
@@ -311,7 +342,7 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
 
 
 def plan_job(job: Job, method: str | None = None, safety_factor: float | None = None,
-             progress: bool = False) -> PlanResult:
+             progress: bool = False, threads: int = DEFAULT_THREADS) -> PlanResult:
     """Prepare and plan a job.
 
     Args:
@@ -319,6 +350,8 @@ def plan_job(job: Job, method: str | None = None, safety_factor: float | None = 
         method: ``optimize``, ``thesis`` or ``constant`` (default: the job's ``[plan] method``).
         safety_factor: the thesis safety factor (default: the job's).
         progress: show progress on stderr.
+        threads: threads of the ceilings' evaluation (1 in a study's worker process, which has
+            one core to itself).
 
     Raises:
         PlanInfeasibleError: a limit cannot be met at any feed (names the section and constraint).
@@ -328,7 +361,8 @@ def plan_job(job: Job, method: str | None = None, safety_factor: float | None = 
     t = time.perf_counter()
     prep = prepare(job, progress=progress)
     prep_time = time.perf_counter() - t
-    result = plan_prepared(prep, method or job.plan.method, safety_factor, progress=progress)
+    result = plan_prepared(prep, method or job.plan.method, safety_factor, progress=progress,
+                           threads=threads)
     result.wall_times = {"prepare_s": prep_time, **prep.wall_times, **result.wall_times}
     return result
 

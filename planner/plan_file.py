@@ -5,13 +5,19 @@ files ``plan.json`` + ``samples.npz`` (the only place its units are mm, degrees 
 :meth:`Plan.save` and read back by :func:`load_plan`. Every consumer — the KRL exporter, the
 supervisor, the simulated cut, the demo — takes a :class:`Plan`. The file contract is in
 ``docs/planner.md`` ("plan.json"); in short, ``plan.json`` (``format`` ``"cctmill-plan"``,
-``version`` 1) holds the job's identity, ``base_frame``/``tool_frame`` (``xyz_mm``, ``abc_deg``),
+``version`` 2) holds the job's identity, ``base_frame``/``tool_frame`` (``xyz_mm``, ``abc_deg``),
 ``constraints`` (:class:`planner.limits.Limits`), the ``sections`` (one object per
 :class:`PlanSection`, units in the key names), ``cycle_time_s``, ``process_time_s``, ``solver``,
 ``wall_times_s``, ``summary``, ``import_warnings``, ``warnings`` and ``samples_file``;
 ``samples.npz`` one array per :data:`SAMPLE_ARRAYS` entry (and the optional ones of
 :data:`SAMPLE_EXTRA`). :func:`load_plan` checks the document against :mod:`planner.plan_schema`
 (types, ranges, the partition of the samples) before it converts anything.
+
+Sections are numbered from 1 wherever a file or a person sees them — plan.json's ``index``,
+samples.npz's ``section``, the KRL folds and ``.dat``, the report, the supervisor's log — and
+held from 0 in memory (:attr:`PlanSection.index`, a position in :attr:`Plan.sections`;
+:attr:`PlanSection.number` is the one people see). Version 1 files numbered them from 0 and are
+refused (:data:`SECTIONS_FROM_ZERO_VERSION`).
 """
 
 from __future__ import annotations
@@ -41,6 +47,7 @@ __all__ = [
     "KINDS",
     "SAMPLE_ARRAYS",
     "SAMPLE_EXTRA",
+    "SECTIONS_FROM_ZERO_VERSION",
     "VERSION",
     "Plan",
     "PlanFileError",
@@ -53,7 +60,10 @@ __all__ = [
 ]
 
 FORMAT = "cctmill-plan"
-VERSION = 1
+#: Version 2: sections numbered from 1 in plan.json and samples.npz.
+VERSION = 2
+#: The last plan.json version that numbered sections from 0 (refused, with the fix).
+SECTIONS_FROM_ZERO_VERSION = 1
 #: What can bind a section's feed.
 BINDINGS = ("chatter", "force", "deflection", "power", "robot", "feed_max", "feed_change",
             "cam_feed", "rapid", "tool")
@@ -149,7 +159,7 @@ class PlanSection:
     """One section of the plan, SI (None: not evaluated, e.g. air and rapid sections).
 
     Attributes:
-        index: position in the plan.
+        index: position in :attr:`Plan.sections`, from 0 (files and people see :attr:`number`).
         kind: ``"cut"``, ``"air"`` or ``"rapid"``.
         sample_start, sample_stop: the samples it covers, ``[start, stop)``.
         s_start, s_end: arc length at its ends [m]; length: its length [m].
@@ -199,10 +209,17 @@ class PlanSection:
     tightest_sample: int | None = None
     characteristic: SectionCharacteristic | None = None
 
+    @property
+    def number(self) -> int:
+        """The section's number as files and people see it: 1 for the first section (the KRL
+        fold ``section 1``, ``NAME_F001``, plan.json ``index`` 1, the report's row 1)."""
+        return self.index + 1
+
     def as_json(self) -> dict[str, Any]:
-        """The section's plan.json object (units in the key names)."""
+        """The section's plan.json object (units in the key names; ``index`` is its
+        :attr:`number`, from 1)."""
         out: dict[str, Any] = {
-            "index": self.index, "kind": self.kind, "sample_start": self.sample_start,
+            "index": self.number, "kind": self.kind, "sample_start": self.sample_start,
             "sample_stop": self.sample_stop, "s_start_m": self.s_start, "s_end_m": self.s_end,
             "length_m": self.length, "feed_mm_s": self.feed * 1e3, "binding": self.binding,
             "process_binding": self.process_binding, "note": self.note,
@@ -227,7 +244,8 @@ class PlanSection:
 
     @classmethod
     def from_json(cls, d: dict[str, Any]) -> PlanSection:
-        """Raises ``KeyError``/``TypeError``/``ValueError`` for a malformed object."""
+        """The section of a plan.json object (its ``index`` a number from 1). Raises
+        ``KeyError``/``TypeError``/``ValueError`` for a malformed object."""
         ch = d.get("characteristic")
         try:
             char = SectionCharacteristic.from_json(ch) if isinstance(ch, dict) else None
@@ -236,7 +254,7 @@ class PlanSection:
         gr, nf = d.get("gamma_range_deg"), d.get("natural_frequency_hz")
         feed = d["feed_mm_s"]
         return cls(
-            index=int(d["index"]), kind=str(d["kind"]), sample_start=int(d["sample_start"]),
+            index=int(d["index"]) - 1, kind=str(d["kind"]), sample_start=int(d["sample_start"]),
             sample_stop=int(d["sample_stop"]), s_start=float(d["s_start_m"]),
             s_end=float(d["s_end_m"]), feed=math.nan if feed is None else float(feed) * 1e-3,
             binding=str(d["binding"]), length=_opt(d.get("length_m")),
@@ -419,7 +437,7 @@ class Plan:
             try:
                 secs.append(PlanSection.from_json(d))
             except (KeyError, TypeError, ValueError) as e:
-                raise PlanFileError(where, f"section {d.get('index', k)} is malformed ({e})") from e
+                raise PlanFileError(where, f"section {d.get('index', k + 1)} is malformed ({e})") from e
         base = _frame_si(doc.get("base_frame"), "base", where)
         tool = _frame_si(doc.get("tool_frame"), "tool", where)
         sf = (doc.get("constraints") or {}).get("safety_factor")
@@ -479,7 +497,12 @@ def load_plan(path: str | os.PathLike) -> Plan:
         raise PlanFileError(str(p), f"not readable JSON ({e}); {PlanFileError.REPLAN}") from e
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise PlanFileError(str(p), f"not a cctmill plan (format must be {FORMAT!r})")
-    if data.get("version") != VERSION or isinstance(data.get("version"), bool):
+    version = data.get("version")
+    if version == SECTIONS_FROM_ZERO_VERSION and not isinstance(version, bool):
+        raise PlanFileError(str(p), f"plan.json from an older cctmill (version {version}) numbers "
+                            "sections from 0; plan it again (cctmill plan JOB.toml -o DIR) to "
+                            "number them from 1, as the KRL program and the report do")
+    if version != VERSION or isinstance(version, bool):
         raise PlanFileError(str(p), f"plan version {_short(data.get('version'))}; this cctmill "
                             f"reads version {VERSION}: plan the job again")
     doc = validate_document(data, file=str(p))

@@ -1,5 +1,7 @@
 """The plan's per-sample table: :class:`PlanSamples` (SI) and its file ``samples.npz`` (the units in
-the array names), with the unit conversions of the plan's file edge."""
+the array names), with the unit conversions of the plan's file edge. The file's ``section`` is the
+section's number, from 1 (plan.json's ``index``); in memory it is the position in the plan's
+sections, from 0."""
 
 from __future__ import annotations
 
@@ -8,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["SAMPLE_ARRAYS", "SAMPLE_EXTRA", "PlanSamples", "from_file_unit", "to_file_unit"]
+__all__ = ["NUMBER", "SAMPLE_ARRAYS", "SAMPLE_EXTRA", "PlanSamples", "from_file_unit", "to_file_unit"]
 
 #: Arrays every ``samples.npz`` holds: file name → trailing shape.
 SAMPLE_ARRAYS: dict[str, tuple[int, ...]] = {
@@ -22,11 +24,14 @@ SAMPLE_ARRAYS: dict[str, tuple[int, ...]] = {
 SAMPLE_EXTRA: dict[str, tuple[int, ...]] = {
     "ceiling_mm_s": (), "robot_limited": (), "bound_mm_s": (), "joint_speed_rad_s": (6,),
 }
-#: file name → (attribute, SI → file conversion); ``None`` copies, ``"deg"`` is rad → deg.
+#: A conversion of :func:`to_file_unit`: a position from 0 in memory is a number from 1 in the file.
+NUMBER = "number"
+#: file name → (attribute, SI → file conversion); ``None`` copies, ``"deg"`` is rad → deg,
+#: :data:`NUMBER` a position from 0 → a number from 1.
 _SAMPLE_UNITS: dict[str, tuple[str, float | str | None]] = {
     "s_m": ("s", None), "q_rad": ("q", None), "position_wp_m": ("position_wp", None),
     "abc_wp_deg": ("abc_wp", "deg"), "tool_axis_wp": ("tool_axis_wp", None),
-    "section": ("section", None), "kind": ("kind", None), "arc": ("arc", None),
+    "section": ("section", NUMBER), "kind": ("kind", None), "arc": ("arc", None),
     "move": ("move", None), "line": ("line", None), "source_file": ("source_file", None),
     "feed_mm_s": ("feed", 1e3), "speed_mm_s": ("speed", 1e3), "time_s": ("time", None),
     "force_N": ("force", None), "deflection_mm": ("deflection", 1e3),
@@ -40,9 +45,12 @@ _SAMPLE_UNITS: dict[str, tuple[str, float | str | None]] = {
 
 def to_file_unit(v: Any, unit: float | str | None) -> Any:
     """An SI value (or array) in a file's unit: ``unit`` the factor (e.g. 1e3 for m → mm), ``"deg"``
-    for rad → deg, None to copy; None stays None."""
+    for rad → deg, :data:`NUMBER` for a position from 0 → a number from 1, None to copy; None stays
+    None."""
     if v is None or unit is None:
         return v
+    if unit == NUMBER:
+        return v + 1
     if unit == "deg":
         return np.degrees(v)
     return v * unit
@@ -52,6 +60,8 @@ def from_file_unit(v: Any, unit: float | str | None) -> Any:
     """The inverse of :func:`to_file_unit`."""
     if v is None or unit is None:
         return v
+    if unit == NUMBER:
+        return v - 1
     if unit == "deg":
         return np.radians(v)
     return v / unit
@@ -65,7 +75,8 @@ class PlanSamples:
         s: arc length [m]; q: joint angles [rad], (n, 6); position_wp: TCP in ``$BASE`` [m],
             (n, 3); abc_wp: TCP orientation in ``$BASE`` as KUKA A, B, C [rad], (n, 3);
             tool_axis_wp: unit tool axis in ``$BASE``, (n, 3).
-        section, kind (0 cut, 1 air, 2 rapid), arc (bool), move, line, source_file (index into
+        section (position in :attr:`Plan.sections`, from 0; the file's ``section`` numbers from 1),
+            kind (0 cut, 1 air, 2 rapid), arc (bool), move, line, source_file (index into
             :attr:`Plan.files`): where each sample comes from.
         feed: planned feed [m/s]; speed: timed path speed [m/s]; time: timed clock [s].
         force [N]; deflection: ‖δ‖ [m]; deflection_wp: δ in ``$BASE`` axes [m], (n, 3);

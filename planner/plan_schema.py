@@ -10,7 +10,8 @@ JSON path of the bad value instead of failing somewhere in the exporter or the s
   not silently ignored), numbers finite where physics needs them (JSON's ``NaN``/``Infinity``
   tokens are refused), times and lengths ≥ 0, speeds > 0 and feeds at most
   :data:`FEED_MAX_MM_S`; ``null`` only where the writer writes it (a missing value);
-- consistency: ``sections[k].index == k``, the sections partition the samples
+- consistency: ``sections[k].index == k + 1`` (sections are numbered from 1, as the KRL program
+  and the report number them), the sections partition the samples
   (``0 = start_0 < stop_0 = start_1 < … < stop_last = n`` with n the rows of ``samples.npz``),
   ``s_start_m ≤ s_end_m``, a null feed only in a rapid section, a characteristic's arrays as long
   as its ``feeds_mm_s``, ``feed_min_mm_s ≤ feed_max_mm_s``.
@@ -117,6 +118,8 @@ _Feed = Annotated[float, PlainValidator(_number(
 _FeedOrZero = Annotated[float, PlainValidator(_number(
     f"a finite number from 0 to {FEED_MAX_MM_S:g} mm/s", 0.0, False, FEED_MAX_MM_S))]
 _Index = Annotated[int, PlainValidator(_integer(0))]
+#: A section's number: 1 for the first section (sample indices count from 0).
+_Number = Annotated[int, PlainValidator(_integer(1))]
 _Flutes = Annotated[int, PlainValidator(_integer(1))]
 _Str = Annotated[str, Field(strict=True)]
 _Bool = Annotated[bool, Field(strict=True)]
@@ -176,7 +179,7 @@ _AT_LEAST_ONE = {"sections": "section", "feeds_mm_s": "feed"}
 class SectionDoc(_Doc):
     """One of ``sections`` (:class:`planner.plan_file.PlanSection`, units in the key names)."""
 
-    index: _Index
+    index: _Number               # the section's number, 1 for the first
     kind: Literal["cut", "air", "rapid"]
     sample_start: _Index
     sample_stop: _Index
@@ -238,7 +241,7 @@ class PlanDocument(_Doc):
     """A whole plan.json (``docs/planner.md``, "The plan file")."""
 
     format: Literal["cctmill-plan"]
-    version: Literal[1]
+    version: Literal[2]
     method: _Str
     job_name: _Str | None = None
     job_folder: _Str | None = None
@@ -369,9 +372,9 @@ def _consistency(doc: PlanDocument) -> None:
     expect = 0
     for k, sec in enumerate(doc.sections):
         at = f"sections[{k}]"
-        if sec.index != k:
-            raise _Problem(f"{at}.index",
-                           f"must be {k} (sections are numbered in path order), got {sec.index}")
+        if sec.index != k + 1:
+            raise _Problem(f"{at}.index", f"must be {k + 1} (sections are numbered 1, 2, … in "
+                           f"path order), got {sec.index}")
         if sec.sample_start != expect:
             where = "0, the first sample" if k == 0 else f"{expect}, where sections[{k - 1}] stops"
             raise _Problem(f"{at}.sample_start", f"must be {where} (the sections partition the "

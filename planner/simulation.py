@@ -61,15 +61,15 @@ class SimulationOptions:
         for name in ("duration", "fs_hz"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
-                raise InputError(name, f"must be positive, got {value}")
+                raise InputError(name, f"must be positive, got {value:g}")
         if not 0.0 <= self.damping_ratio < 1.0:
-            raise InputError("damping_ratio", f"must lie in [0, 1), got {self.damping_ratio}")
+            raise InputError("damping_ratio", f"must lie in [0, 1), got {self.damping_ratio:g}")
         if self.slices < 1:
             raise InputError("slices", f"need at least 1, got {self.slices}")
         if not math.isfinite(self.perturbation):
-            raise InputError("perturbation", f"must be finite, got {self.perturbation}")
+            raise InputError("perturbation", f"must be finite, got {self.perturbation:g}")
         if not (math.isfinite(self.noise) and self.noise >= 0):
-            raise InputError("noise", f"must be >= 0, got {self.noise}")
+            raise InputError("noise", f"must be >= 0, got {self.noise:g}")
 
 
 @dataclass(frozen=True)

@@ -175,8 +175,8 @@ class Stock:
         except (TypeError, ValueError) as e:
             raise InputError("stock", "z_bottom and z_top must be numbers [m]") from e
         if not (math.isfinite(self.z_bottom) and math.isfinite(self.z_top)):
-            raise InputError("stock", f"z_bottom and z_top must be finite, got {self.z_bottom!r}, "
-                             f"{self.z_top!r}")
+            raise InputError("stock", f"z_bottom and z_top must be finite, got {self.z_bottom:g}, "
+                             f"{self.z_top:g}")
         if not self.z_top > self.z_bottom:
             raise InputError("stock", f"z_top ({self.z_top:g} m) must lie above z_bottom "
                              f"({self.z_bottom:g} m)")
@@ -278,9 +278,9 @@ def stock_engagement(points: Any, tool_axis: Any, cutting: Any, tool_radius: flo
                                   "2.5-D engagement from a stock")
     n = pts.shape[0]
     if not (math.isfinite(z_tol) and z_tol > 0):
-        raise InputError("z_tol", f"must be positive [m], got {z_tol!r}")
+        raise InputError("z_tol", f"must be positive [m], got {z_tol:g}")
     if not (0 < angular_resolution <= math.pi / 4):
-        raise InputError("angular_resolution", f"must lie in (0, π/4] rad, got {angular_resolution!r}")
+        raise InputError("angular_resolution", f"must lie in (0, π/4] rad, got {angular_resolution:g}")
 
     radius = float(tool_radius)
     z_top, z_bottom = float(stock.z_top), float(stock.z_bottom)
@@ -418,7 +418,7 @@ def stock_inputs(points: Any, tool_axis: Any, cutting: Any, tool_radius: float, 
     cut = cutting_mask(cutting, n)
     axes = unit_axes(tool_axis, n)
     if not (math.isfinite(tool_radius) and tool_radius > 0):
-        raise InputError("tool_radius", f"must be positive [m], got {tool_radius!r}")
+        raise InputError("tool_radius", f"must be positive [m], got {tool_radius:g}")
     if not isinstance(stock, Stock):
         raise InputError("stock", f"must be a Stock, got {type(stock).__name__}")
     tilt = np.arccos(np.clip(axes[:, 2], -1.0, 1.0))

@@ -187,7 +187,7 @@ def zmap_engagement(points: Any, tool_axis: Any, cutting: Any, tool_radius: floa
         raise InputError("zmap_cell_mm", f"the Z-map cell must lie in (0, R/2] = (0, "
                          f"{0.5e3 * radius:g}] mm for this tool, got {cell * 1e3:g} mm")
     if not (math.isfinite(sliver) and 0 <= sliver < 0.1 * radius):
-        raise InputError("sliver", f"must lie in [0, R/10) [m], got {sliver!r}")
+        raise InputError("sliver", f"must lie in [0, R/10) = [0, {0.1 * radius:g}) m, got {sliver:g} m")
     bounds = tuple(float(v) for v in stock.polygon.bounds)
     cells = (math.ceil((bounds[2] - bounds[0]) / cell) + 5) * (math.ceil((bounds[3] - bounds[1])
                                                                          / cell) + 5)

@@ -22,6 +22,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     "robot_io.links.kvp": ("KvpClient", "KvpConnection"),
     "robot_io.links.kvp_sim": ("KvpSimServer",),
     "robot_io.links.rsi": ("RsiServer",),
+    "robot_io.links.rsi_config": ("RsiConfig", "load_rsi_config"),
     "robot_io.links.rsi_process": ("RsiProcessServer",),
     "robot_io.links.rsi_sim": ("RsiSimController",),
     "robot_io.readers": ("FORMATS", "detect_format", "read_toolpath"),

@@ -53,7 +53,7 @@ def make_plan(folder: Path, sections: list[dict], step_m: float = 0.002,
                              spec.get("force_per_mm_s", 15.0), rising=spec.get("rising", False))
               if kind == "cut" else None)
         secs.append({
-            "index": i, "kind": kind, "s_start_m": s0, "s_end_m": s0 + spec["length_m"],
+            "index": i + 1, "kind": kind, "s_start_m": s0, "s_end_m": s0 + spec["length_m"],
             "feed_mm_s": spec["feed_mm_s"], "binding": "chatter", "margin_N_per_m": 1e4,
             "force_max_N": 150.0, "gamma_deg": 20.0, "natural_frequency_hz": list(NATURAL_HZ),
             "tooth_frequency_hz": TOOTH_HZ, "characteristic": ch,
@@ -67,7 +67,7 @@ def make_plan(folder: Path, sections: list[dict], step_m: float = 0.002,
     k = 0
     for i, ((s_start, n), spec) in enumerate(zip(starts, sections, strict=True)):
         s_all.append(np.linspace(s_start, s_start + spec["length_m"], n, endpoint=False))
-        sec_all.append(np.full(n, i))
+        sec_all.append(np.full(n, i + 1))     # the file numbers sections from 1
         feed_all.append(np.full(n, spec["feed_mm_s"]))
         secs[i]["sample_start"], secs[i]["sample_stop"] = k, k + n
         k += n

@@ -83,7 +83,7 @@ def test_characteristic_of_sections():
 
 def test_a_malformed_characteristic_is_none():
     bad = {"feeds_mm_s": [1.0, 2.0], "margin_N_per_m": [1.0], "force_N": [1.0, 2.0]}
-    sec = PlanSection.from_json({"index": 0, "kind": "cut", "sample_start": 0, "sample_stop": 2,
+    sec = PlanSection.from_json({"index": 1, "kind": "cut", "sample_start": 0, "sample_stop": 2,
                                  "s_start_m": 0.0, "s_end_m": 0.1, "feed_mm_s": 8.0,
                                  "binding": "chatter", "characteristic": bad})
     assert sec.characteristic is None and characteristic_of(sec) is None  # dropped when read

@@ -100,14 +100,14 @@ def _write_synthetic(folder: Path, b: _Builder, cuts: list[tuple[int, int, str, 
     section = np.zeros(n, int)
     rows = []
     for i, (a, stop, kind, feed_mm_s, binding) in enumerate(cuts):
-        section[a:stop] = i
-        rows.append({"index": i, "kind": kind, "sample_start": a, "sample_stop": stop,
+        section[a:stop] = i + 1                  # the files number sections from 1
+        rows.append({"index": i + 1, "kind": kind, "sample_start": a, "sample_stop": stop,
                      "s_start_m": float(samples["s_m"][a]),
                      "s_end_m": float(samples["s_m"][stop - 1]), "feed_mm_s": feed_mm_s,
                      "binding": binding, "margin_N_per_m": 1.5e4, "force_max_N": 120.0,
                      "line_start": 10 + i, "line_end": 11 + i, "file": "/jobs/part.nc"})
     samples["section"] = section
-    samples["feed_mm_s"] = np.array([rows[s]["feed_mm_s"] or 0.0 for s in section], float)
+    samples["feed_mm_s"] = np.array([rows[s - 1]["feed_mm_s"] or 0.0 for s in section], float)
     data = {
         "method": "optimize", "job_name": job_name, "job_file": "/jobs/part.toml",
         "robot": "kr210_r2700_extra",
@@ -219,7 +219,7 @@ def test_synthetic_plan_round_trip(tmp_path, controller) -> None:
     assert facts["decl"]["bracket_gamma_test_F003"] == 0.001234567
     assert tp.moves[-1].extra.get("approx") is None             # the last move stops exactly
     src = paths[0].read_text(encoding="ascii")
-    assert "bound by chatter" in src and "plan section 2; source lines 12-13 of part.nc" in src
+    assert "bound by chatter" in src and "plan section 3; source lines 12-13 of part.nc" in src
     assert "$BASE = {FRAME: X 1500.0000,Y -60.0000,Z 400.0000,A 10.0000" in src
 
 

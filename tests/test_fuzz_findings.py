@@ -6,6 +6,13 @@
    simulated controller's thread while its status said ``running``. 4. APT took coordinates up to
    1e308 mm (``length_m = inf``). 5. One UDP sample datagram far ahead added ~2**31 to ``lost``, a
    restarted sender's timestamps went back, and the simulated KVP server's table grew without end.
+6. Recorded signal files (``make fuzz``, target ``signal``): an empty ``.npy`` leaked ``EOFError``, an
+   ``.npz`` under a ``.npy`` name ``AttributeError`` (and a damaged one ``BadZipFile`` and an open
+   file), a header declaring 10**11 samples ``MemoryError``, a header numpy tokenises
+   ``TokenError``; a CSV field over 128 KiB leaked ``csv.Error``; a sample rate of 5e-324 Hz gave
+   infinite times (an overflow warning). 7. An endless G-code o-word loop took 1.5-9 s to be refused
+   and the flow limit allowed far more (``make fuzz``, target ``gcode``): now a budget of lines
+   read again through loops and calls bounds a reading to about a second.
 
 The timing guards are generous hang detectors (the fixed code takes milliseconds); the assertions
 are on the results. Sockets are loopback only.
@@ -13,10 +20,12 @@ are on the results. Sockets are loopback only.
 
 from __future__ import annotations
 
+import io
 import logging
 import math
 import re
 import socket
+import struct
 import subprocess
 import sys
 import threading
@@ -37,6 +46,7 @@ from robot_io.links.kvp import FN_READ, FN_WRITE, KvpRequest, pack_request, read
 from robot_io.links.kvp_sim import MAX_VARIABLES, KvpSimServer
 from robot_io.links.rsi import RsiServer, build_rob, build_sen, parse_rob, parse_sen
 from robot_io.links.rsi_sim import RsiSimController
+from robot_io.signals.replay import SignalFileError, load_signal
 from robot_io.signals.udp import MAX_LOSS_GAP, UdpSignalSender, UdpSignalSource, pack_samples
 from robot_io.toolpath import ToolpathError, summarize
 
@@ -351,3 +361,113 @@ def test_kvp_sim_variable_table_is_bounded():
         assert srv.override_percent == 1.0
     with pytest.raises(LinkError, match="MAX_VARIABLES"):
         KvpSimServer(variables={f"V{i}": "0" for i in range(MAX_VARIABLES + 1)})
+
+
+# -- 6. Recorded signal files: every unusable file is a SignalFileError -----------------------------------
+
+def _npy(header: bytes, data: bytes = b"", version: bytes = b"\x01\x00") -> bytes:
+    """A ``.npy`` file of this header text (padded and ended as numpy writes it) and data."""
+    pad = 64 - (10 + len(header) + 1) % 64
+    text = header + b" " * pad + b"\n"
+    return b"\x93NUMPY" + version + struct.pack("<H", len(text)) + text + data
+
+
+def _npz() -> bytes:
+    buf = io.BytesIO()
+    np.savez(buf, t=np.arange(3.0))
+    return buf.getvalue()
+
+
+_HEADER = b"{'descr': '<f8', 'fortran_order': False, 'shape': %s, }"
+
+
+@pytest.mark.parametrize("name, content, match", [
+    ("empty.npy", b"", r"not a readable \.npy array \(No data left in file\)"),
+    ("archive.npy", _npz(), r"an \.npz archive of arrays, not one array"),
+    ("damaged_archive.npy", b"PK\x03\x04" + b"\x00" * 40, r"an \.npz archive of arrays"),
+    ("huge_header.npy", _npy(_HEADER % b"(100000000000,)", np.ones(3).tobytes()),
+     r"not a readable \.npy array \(mmap length is greater than file size\)"),
+    ("unterminated_header.npy", _npy(_HEADER.replace(b" }", b" '''}") % b"(3,)", np.ones(3).tobytes()),
+     r"not a readable \.npy array \(\('EOF in multi-line"),
+    ("complex.npy", _npy(_HEADER.replace(b"<f8", b"<c16") % b"(3,)", np.ones(6).tobytes()),
+     r"dtype complex128 is not real numbers"),
+    ("long_field.csv", b"t_s,force_N\n0," + b"1" * 140_000 + b"\n1,2\n",
+     r":2: not readable as CSV \(field larger than field limit"),
+])
+def test_an_unusable_signal_file_is_a_signal_file_error(tmp_path, recwarn, name, content, match):
+    path = tmp_path / name
+    path.write_bytes(content)
+    with pytest.raises(SignalFileError, match=match) as e:
+        load_signal(path, fs_hz=1000.0)
+    assert e.value.file == str(path)
+    assert not recwarn.list     # no file left open (a ResourceWarning), no numpy warning
+
+
+def test_a_huge_header_is_refused_without_allocating_it(tmp_path):
+    path = tmp_path / "huge.npy"
+    path.write_bytes(_npy(_HEADER % b"(100000000000,)", np.ones(3).tobytes()))
+    code = (f"import resource; from robot_io.signals.replay import load_signal, SignalFileError\n"
+            f"resource.setrlimit(resource.RLIMIT_DATA, (2**31, resource.RLIM_INFINITY))\n"
+            f"try: load_signal({str(path)!r}, fs_hz=1000.0)\nexcept SignalFileError: pass\n")
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=60)   # MemoryError: exit 1
+
+
+def test_a_sample_rate_too_small_for_finite_times_is_refused(tmp_path):
+    path = tmp_path / "one_column.csv"
+    path.write_text("value\n1\n2\n3\n")
+    with pytest.raises(SignalFileError, match=r"sample rate 4.94066e-324 Hz is too small: the times of 3 "):
+        load_signal(path, fs_hz=5e-324)
+    t, v = load_signal(path, fs_hz=1e-300)      # huge but finite times are times
+    assert np.all(np.isfinite(t)) and np.all(np.diff(t) > 0) and v.tolist() == [1, 2, 3]
+
+
+def test_a_valid_npy_signal_still_loads(tmp_path):
+    path = tmp_path / "signal.npy"
+    np.save(path, np.column_stack([np.arange(4) * 1e-3, np.arange(4.0)]))
+    t, v = load_signal(path)
+    np.testing.assert_allclose(t, [0, 1e-3, 2e-3, 3e-3])
+    assert v.tolist() == [0, 1, 2, 3]
+    np.save(path, np.arange(5, dtype="<i2"))
+    t, v = load_signal(path, fs_hz=100.0)
+    assert t[-1] == pytest.approx(0.04) and v.dtype == float
+
+
+# -- 7. G-code O-word loops: a budget of lines read again ---------------------------------------------
+
+#: The fuzz target's finding, in the same form: a while loop whose body resets its counter (a
+#: mutation put ``#1 = 0`` inside it) and moves every round. Read 100,000 rounds (the loop limit)
+#: it took 8 s and 140 MB.
+ENDLESS = ("G21 G90 G0 X0 Y0 Z5 F100\n#1 = 0\no100 while [#1 LT 3]\nG1 X[#1] Y[SIN[#1]]\n"
+           "#1 = 0\n#1 = [#1 + 1]\no100 endwhile\nM30\n")
+
+
+def test_gcode_an_endless_loop_is_refused_within_the_time_bound():
+    from robot_io.gcode.reader import MAX_FLOW_LINES
+
+    err = _timed(read_gcode_text, ENDLESS, file="fuzz.ngc")
+    assert isinstance(err, ToolpathError) and (err.file, err.line) == ("fuzz.ngc", 3)
+    assert f"reads more than {MAX_FLOW_LINES:,} lines again through its loops and calls" in err.reason
+    t = time.perf_counter()
+    tp = read_gcode_text(ENDLESS, strict=False)   # lenient: the rest of the program is not read
+    assert time.perf_counter() - t < HANG_S
+    assert tp.skipped["o_word"] == 1
+    # the first round, then one for each 4-line body the budget holds, and the G0
+    assert len(tp.moves) == 1 + MAX_FLOW_LINES // 4 + 1
+
+
+def test_gcode_the_flow_limits_keep_a_reading_within_the_time_bound():
+    """Lines of a loop timed, then multiplied out to the budget of lines read again: the longest
+    reading it allows stays under the fuzz rule's 2 s (a call counts its body as a loop does)."""
+    from robot_io.gcode.reader import MAX_FLOW_LINES
+
+    rounds = 2000
+    text = (f"G21 G90 G0 X0 Y0 Z5 F100\n#1=0\no100 while [#1 LT {rounds}]\nG1 X[#1] Y[SIN[#1]]\n"
+            "#1=[#1+1]\no100 endwhile\nM30\n")
+    t = time.perf_counter()
+    assert len(read_gcode_text(text).moves) == rounds + 1
+    per_line = (time.perf_counter() - t) / (3 * rounds)
+    assert per_line * MAX_FLOW_LINES < HANG_S, f"the budget: {per_line * MAX_FLOW_LINES:.1f} s"
+    calls = ("G21 G90 G0 X0 Y0 Z5 F100\no1 sub\nG1 X1\nG1 X2\no1 endsub\no2 repeat [100000]\n"
+             "o1 call\no2 endrepeat\nM30\n")
+    with pytest.raises(ToolpathError, match="lines again through its loops and calls"):
+        read_gcode_text(calls)

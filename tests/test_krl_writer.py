@@ -298,7 +298,7 @@ _MV = [KrlMove("LIN", (0, 0, 0, 0, 90, 0), 0)]
      [KrlMove("LIN", (0, 0, 0, 0, 90, 0), 1), KrlMove("LIN", (1, 0, 0, 0, 90, 0), 0)],
      "move 1", r"contiguous"),
     (KrlProgramSpec("P", HOME), [KrlSection(0.001), KrlSection(0.001)], _MV, "sections",
-     r"section 1 has no moves"),
+     r"section 2 has no moves"),
 ])
 def test_writer_refuses(spec, sections, moves, field, match) -> None:
     with pytest.raises(KrlError, match=match) as e:

@@ -293,6 +293,33 @@ def test_client_writes_and_reads_back_ov_pro(count_trailer):
         assert st.replies == st.sent >= 6
 
 
+@pytest.mark.parametrize("mode,status_ok", [("refuse", False), ("ignore", True)])
+def test_client_counts_writes_the_controller_does_not_apply(mode, status_ok):
+    # a controller that answers status 0 ("refuse"), or status 1 without taking the value
+    # ("ignore": the read-back shows the old one): both are refusals, counted with the reason
+    with KvpSimServer(override_mode=mode) as srv, KvpClient(*srv.address) as link:
+        assert link.wait_connected()
+        t0 = time.monotonic()
+        assert link.set_override(40).ok           # queued: the answer comes from the controller
+        assert not link.flush()
+        assert wait_for(lambda: link.stats.refused == 1)
+        assert srv.first_refusal_s is not None and srv.first_refusal_s >= t0
+        assert srv.stats.ov_pro_refused == 1 and srv.stats.ov_pro_writes == 0
+        assert srv.override_percent == 100.0 and link.read_override() == 100.0
+        st = link.stats
+        assert ("status 0" in st.last_error) != status_ok and "40" in st.last_error
+        assert link.set_override(40).ok and not link.flush(0.1)  # not retried: still one
+        assert link.stats.refused == 1
+        srv.override_mode = "apply"               # the controller takes writes again
+        assert link.set_override(55).ok and link.flush()
+        assert srv.override_percent == 55.0 and link.stats.refused == 1
+
+
+def test_sim_server_refuses_an_unknown_override_mode():
+    with pytest.raises(LinkError, match="override_mode 'maybe'"):
+        KvpSimServer(override_mode="maybe")
+
+
 def test_set_override_does_not_block_on_a_silent_server():
     """A server that accepts and never answers: the worker hangs in recv, set_override does not."""
     lsock = socket.socket()

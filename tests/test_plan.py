@@ -171,6 +171,8 @@ def test_infeasible_force_limit_names_section_and_constraint():
         plan_prepared(prepare(job), "optimize")
     assert err.value.constraint == "force"
     assert "edge forces" in str(err.value)
+    # the message numbers the section from 1, as plan.json and the KRL program do
+    assert str(err.value).startswith(f"section {err.value.section + 1} (s ")
 
 
 def test_infeasible_plan_from_the_cli_is_one_line(capsys, tmp_path):

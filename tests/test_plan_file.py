@@ -259,8 +259,10 @@ CORRUPTIONS = [
     ("section_key_typo", lambda d: d["sections"][3].update(feed_mms=5.0),
      r"sections\[3\]\.feed_mms: unknown key; did you mean 'feed_mm_s'\?"),
     ("index_str", _set("sections", 3, "index", "3"), r"sections\[3\]\.index: must be an integer"),
-    ("index_out_of_order", _set("sections", 3, "index", 4),
-     r"sections\[3\]\.index: must be 3 \(sections are numbered in path order\), got 4"),
+    ("index_out_of_order", _set("sections", 3, "index", 3),
+     r"sections\[3\]\.index: must be 4 \(sections are numbered 1, 2, … in path order\), got 3"),
+    ("index_from_zero", _set("sections", 0, "index", 0),
+     r"sections\[0\]\.index: must be an integer ≥ 1, got 0"),
     ("kind_unknown", _set("sections", 3, "kind", "milling"),
      r"sections\[3\]\.kind: must be 'cut', 'air' or 'rapid', got 'milling'"),
     ("samples_gap", _shift_start,
@@ -292,7 +294,8 @@ CORRUPTIONS = [
     ("job_name_object", _set("job_name", {}), r"job_name: must be a string, got \{\}"),
     ("samples_file_path", _set("samples_file", "../other/samples.npz"),
      r"samples_file: must be a file name ending \.npz beside plan\.json"),
-    ("version_str", _set("version", "1"), r"plan version '1'; this cctmill reads version 1"),
+    ("version_str", _set("version", "2"), r"plan version '2'; this cctmill reads version 2"),
+    ("version_1", _set("version", 1), r"older cctmill \(version 1\) numbers sections from 0; plan it again"),
     ("top_level_list", _whole(lambda text: f"[{text}]"), r"not a cctmill plan"),
     ("integer_5000_digits", _raw("cycle_time_s", "9" * 5000), r"not readable JSON"),
 ]
@@ -434,7 +437,7 @@ def test_writer_and_reader_share_one_schema(demo_plan_dir, demo_optimized, tmp_p
 
 def test_a_schema_problem_names_the_first_and_counts_the_rest():
     with pytest.raises(PlanFileError) as e:
-        validate_document({"format": "cctmill-plan", "version": 1}, file="x/plan.json")
+        validate_document({"format": "cctmill-plan", "version": VERSION}, file="x/plan.json")
     assert e.value.where == "method" and e.value.path == "x/plan.json"
     assert str(e.value).startswith("x/plan.json: method: missing (and ")
 

@@ -16,6 +16,7 @@ from planner.plan_file import load_plan
 from planner.supervisor import STATUSES, Supervisor, SupervisorConfig
 from planner.supervisor.detector import Detector, select_level
 from planner.supervisor.event_log import EventLog
+from planner.supervisor.link_watch import LinkFault
 from planner.supervisor.loop import VirtualClock, run_loop
 from planner.supervisor.sim_cut import CutScenario, SimulatedCut
 from robot_io.links.base import LinkStats, LinkStatus
@@ -51,14 +52,18 @@ class Feeder:
         self.sup, self.rng, self.k, self.now = sup, rng, 0, 0.0
         self.results = []
 
-    def run(self, duration_s, chatter_N=0.0, signal=True):
+    def run(self, duration_s, chatter_N=0.0, signal=True, applied=None):
+        """``chatter_N``: amplitude [N], or a function of (now, result so far) giving it; ``applied``:
+        the override the controller reports, a function of the last result (None: none)."""
         n = int(DT * FS)
         for _ in range(int(round(duration_s / DT))):
             t = (self.k + np.arange(n)) / FS
             self.k += n
-            y = _stable(self.rng, t) + chatter_N * np.sin(2 * np.pi * F_C * t)
+            amp = chatter_N(self.now, self.results) if callable(chatter_N) else chatter_N
+            y = _stable(self.rng, t) + amp * np.sin(2 * np.pi * F_C * t)
             chunk = SignalChunk(t, y) if signal else SignalChunk(np.zeros(0), np.zeros(0))
-            self.results.append(self.sup.step(self.now, chunk))
+            ov = applied(self.results[-1] if self.results else None) if applied else None
+            self.results.append(self.sup.step(self.now, chunk, ov))
             self.now += DT
         return self.results[-1]
 
@@ -105,6 +110,133 @@ def test_no_stabilising_direction_backs_off_towards_the_floor(tmp_path, rng, sig
     assert sup.counts["no_direction"] > 0
     assert f.results[-1].override == pytest.approx(sup.cfg.floor_pct)  # the floor holds
     assert min(r.override for r in f.results) >= sup.cfg.floor_pct - 1e-9
+
+
+def _raise_then(tmp_path, rng, sigma, after_alarm, max_N=40.0):
+    """A section whose characteristic says "faster is stabilising" (margin rising with feed), the
+    override brought down to the safe 20 % by a signal loss and recovering, then chatter growing
+    at 25 /s from 1.6 s up to ``max_N``; once the supervisor alarms, ``after_alarm(t since the
+    alarm)`` gives the chatter's growth factor per second (>1 grows: the raise feeds it; <1
+    decays: it works)."""
+    plan = _plan(tmp_path, [{"length_m": 0.2, "feed_mm_s": 8.0, "rising": True}])
+    log = EventLog(tmp_path / "events.jsonl")
+    sup = Supervisor(plan, FS, sigma=sigma, log=log)
+    f = Feeder(sup, rng)
+    f.run(0.5)
+    f.run(0.6, signal=False)
+    f.run(0.5)
+    state = {"a": 0.05, "t": f.now, "alarm": None}
+
+    def chatter(now, results):
+        if state["alarm"] is None and results and results[-1].alarm:
+            state["alarm"] = now
+        rate = 25.0 if state["alarm"] is None else math.log(after_alarm(now - state["alarm"]))
+        state["a"] = min(max_N, state["a"] * math.exp(rate * (now - state["t"])))
+        state["t"] = now
+        return state["a"]
+
+    f.run(2.0, chatter_N=chatter)
+    log.close()
+    return sup, f, [json.loads(x) for x in (tmp_path / "events.jsonl").read_text().splitlines()]
+
+
+@pytest.mark.parametrize("growth_1_s,max_N,rule", [
+    (25.0, 40.0, "has not fallen"),   # saturated chatter: the band stays up -> reversed at T_d
+    (4.0, 400.0, "grew"),             # slower, unbounded growth: reversed as soon as it shows
+])
+def test_a_raise_that_feeds_growing_chatter_is_reversed_within_one_decision_period(
+        tmp_path, rng, sigma, growth_1_s, max_N, rule):
+    sup, f, recs = _raise_then(tmp_path, rng, sigma, lambda t: math.exp(growth_1_s), max_N)
+    i = next(i for i, r in enumerate(f.results) if r.alarm)
+    first = f.results[i]
+    assert first.direction == 1 and "raising" in first.reason
+    j = next(j for j, r in enumerate(f.results) if "reversing" in r.reason)
+    assert rule in f.results[j].reason
+    t_rev = (j - i) * DT
+    assert t_rev <= sup.decision_period_s + DT, (t_rev, sup.decision_period_s)
+    assert f.results[j].target < f.results[j].override   # it backs off from here
+    ep = sup.episodes[0]
+    assert ep.direction == 1 and ep.reversed_s == pytest.approx(ep.start_s + t_rev)
+    assert sup.counts["reversals"] == 1
+    # the override stops rising within the trajectory's braking distance, then goes to the floor
+    peak = max(range(i, len(f.results)), key=lambda k: f.results[k].override)
+    assert (peak - j) * DT < 0.1
+    # the floor did not stop it either: escalated, an operator alarm, the floor held
+    assert ep.outcome == "escalated" and "floor" in ep.outcome_reason
+    assert [a.kind for a in sup.alarms] == ["chatter_escalated"]
+    assert f.results[-1].status == "hold" and f.results[-1].override == pytest.approx(20.0)
+    assert all(r.override <= 100.0 for r in f.results)
+    # every decision with its reason, the reversal and the alarm among them
+    assert all(r["reason"] for r in recs)
+    assert any("reversing" in r["reason"] for r in recs)
+    assert [r["alarm"] for r in recs if r.get("event") == "operator_alarm"] == ["chatter_escalated"]
+
+
+def test_a_raise_that_stabilises_is_not_reversed(tmp_path, rng, sigma):
+    sup, f, _ = _raise_then(tmp_path, rng, sigma, lambda t: math.exp(-30.0))  # decays at once
+    ep = sup.episodes[0]
+    assert ep.direction == 1 and ep.reversed_s is None and sup.counts["reversals"] == 0
+    assert ep.outcome == "resolved" and not sup.alarms
+    assert max(r.override for r in f.results) > ep.override_start + 10.0  # it did raise
+    # and it does not come back down into the chatter: a raise that worked sets no ceiling
+    i = next(i for i, r in enumerate(f.results) if r.alarm)
+    assert min(r.override for r in f.results[i + 100:]) > ep.override_start + 10.0
+
+
+def test_decisions_use_the_override_the_controller_applies(tmp_path, rng, sigma):
+    # a controller that stays at 100 % whatever it is sent: the episode starts and stays at
+    # the applied 100 %; its lowest target is only a target
+    sup = Supervisor(_plan(tmp_path, ONE_SECTION), FS, sigma=sigma)
+    f = Feeder(sup, rng)
+    f.run(0.6, applied=lambda r: 100.0)
+    f.run(0.3, chatter_N=8.0, applied=lambda r: 100.0)
+    ep = sup.episodes[0]
+    assert ep.override_start == 100.0 and ep.override_min == 100.0
+    assert ep.target_min < 90.0
+    # one that follows one step late: the lowest applied override is what was really run
+    sup2 = Supervisor(_plan(tmp_path / "b", ONE_SECTION), FS, sigma=sigma)
+    f2 = Feeder(sup2, rng)
+    f2.run(0.6, applied=lambda r: r.override if r else None)
+    f2.run(0.3, chatter_N=8.0, applied=lambda r: float(round(r.override)))
+    ep2 = sup2.episodes[0]
+    assert ep2.override_min == pytest.approx(min(round(r.override) for r in f2.results[:-1]), abs=1)
+
+
+def test_a_link_fault_holds_the_override_and_raises_an_operator_alarm(tmp_path, rng, sigma):
+    path = tmp_path / "events.jsonl"
+    sup = Supervisor(_plan(tmp_path, ONE_SECTION), FS, sigma=sigma, log=EventLog(path))
+    f = Feeder(sup, rng)
+    f.run(0.6, applied=lambda r: 100.0)
+    f.run(0.3, chatter_N=8.0, applied=lambda r: 100.0)   # an episode is running, lowering
+    held = f.results[-1].override
+    assert held < 100.0 and sup.episodes[0].end_s is None
+    sup.link_fault(f.now, LinkFault(f.now, "refused", "the controller refused 1 override write(s)",
+                                    int(held), 100.0))
+    f.run(0.5, chatter_N=8.0, applied=lambda r: 100.0)
+    after = f.results[-125:]
+    assert all(r.status == "hold" for r in after) and all(r.override == held for r in after)
+    assert sup.episodes[0].outcome == "escalated" and "does not apply" in sup.episodes[0].outcome_reason
+    assert len(sup.episodes) == 1   # no new episode while it cannot act
+    assert [a.kind for a in sup.alarms] == ["link_refused"]
+    sup.link_fault(f.now, LinkFault(f.now, "refused", "another one", int(held), 100.0))
+    assert len(sup.alarms) == 1 and sup.counts["link_faults"] == 2   # counted, one alarm
+    sup.log.close()
+    recs = [json.loads(x) for x in path.read_text().splitlines()]
+    events = [r for r in recs if r.get("event")]
+    assert [r["event"] for r in events] == ["operator_alarm", "link_fault"]
+    assert "refused" in events[0]["reason"] and "cannot act" in events[0]["reason"]
+
+
+def test_an_episode_still_open_when_the_run_ends_is_escalated(tmp_path, rng, sigma):
+    sup = Supervisor(_plan(tmp_path, ONE_SECTION), FS, sigma=sigma)
+    f = Feeder(sup, rng)
+    f.run(0.6)
+    f.run(0.2, chatter_N=8.0)
+    sup.finish(f.now)
+    sup.finish(f.now + 1.0)   # idempotent
+    ep = sup.episodes[0]
+    assert ep.outcome == "escalated" and ep.end_s == f.now and "run ended" in ep.outcome_reason
+    assert [a.kind for a in sup.alarms] == ["run_ended_in_episode"]
 
 
 @pytest.mark.parametrize("force_max_N,cap", [

@@ -4,7 +4,8 @@ Each command module has ``register(sub)``, which adds its parser and sets ``run`
 one library function, prints its result. Units at this edge carry their names (``--feed-mm-s``,
 ``--ae-mm``, ``--joints-deg``); everything is converted to SI before it reaches the library.
 Errors a user can cause print one line ``cctmill <command>: error: ...`` and exit with status 2;
-no traceback.
+no traceback. Every option that names an output is added with :func:`~planner.cli._common.add_output`
+and checked before the command runs.
 """
 
 from __future__ import annotations
@@ -15,14 +16,15 @@ import sys
 from collections.abc import Sequence
 
 from models.errors import CctmillError
-from planner.cli._common import Parser
+from planner.cli._common import Parser, check_outputs
 
 __all__ = ["COMMAND_MODULES", "build_parser", "main"]
 
 #: The command modules, in the order ``cctmill --help`` lists them.
 COMMAND_MODULES: tuple[str, ...] = (
     "planner.cli.analyze", "planner.cli.inspect", "planner.cli.demo", "planner.cli.export",
-    "planner.cli.plan", "planner.cli.robot_sim", "planner.cli.simulate", "planner.cli.supervise")
+    "planner.cli.place", "planner.cli.plan", "planner.cli.robot_sim", "planner.cli.simulate",
+    "planner.cli.supervise")
 
 
 def build_parser() -> Parser:
@@ -55,6 +57,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(_join_negative_values(sys.argv[1:] if argv is None else argv))
     try:
+        check_outputs(args)     # before the work: a long plan is not lost to a typo in -o
         return int(args.run(args))
     except CctmillError as e:
         print(f"cctmill {args.command}: error: {e}", file=sys.stderr)

@@ -1,4 +1,5 @@
-"""What the commands share: the one-line-error parser, number lists, the point-model flags."""
+"""What the commands share: the one-line-error parser, output options, number lists, the point-model
+flags."""
 
 from __future__ import annotations
 
@@ -11,12 +12,15 @@ from models.cutting import MILLING_MODES, available_materials
 from models.errors import InputError
 from models.point import CRITERIA, PointModel
 from models.robot import DEFAULT_ROBOT, available_robots
+from planner._atomic import OUTPUT_KINDS, check_output
 from planner.point_setup import PointSetup
 
 __all__ = [
     "Parser",
+    "add_output",
     "add_point_flags",
     "add_reader_flags",
+    "check_outputs",
     "feed_range",
     "floats",
     "point_setup",
@@ -29,6 +33,29 @@ class Parser(argparse.ArgumentParser):
 
     def error(self, message: str) -> None:  # type: ignore[override]
         self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+
+
+def add_output(p: argparse.ArgumentParser | argparse._ArgumentGroup, *names: str, kind: str,
+               **kwargs) -> argparse.Action:
+    """Add an option that names an output path (``kind``: ``folder``, ``file`` or ``append``, see
+    :data:`planner._atomic.OUTPUT_KINDS`); :func:`check_outputs` checks every such option before
+    the command runs. Every output option of a command is added this way."""
+    if kind not in OUTPUT_KINDS:
+        raise ValueError(f"kind must be one of {OUTPUT_KINDS}, got {kind!r}")
+    action = p.add_argument(*names, **kwargs)
+    outputs = tuple(p.get_default("output_paths") or ())
+    p.set_defaults(output_paths=(*outputs, (action.dest, "/".join(names), kind)))
+    return action
+
+
+def check_outputs(args: argparse.Namespace) -> None:
+    """Raise :class:`planner._atomic.OutputError` (naming the option and the path) for the first
+    output option of :func:`add_output` whose path cannot be written — before any work, so a long
+    plan is not lost to a typo in ``-o``."""
+    for dest, flag, kind in getattr(args, "output_paths", ()):
+        value = getattr(args, dest, None)
+        if value:
+            check_output(value, kind, flag)
 
 
 def floats(text: str, n: int, flag: str) -> np.ndarray:

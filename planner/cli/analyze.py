@@ -12,7 +12,7 @@ import json
 import numpy as np
 
 from models.errors import InputError
-from planner.cli._common import add_point_flags, feed_range, point_setup
+from planner.cli._common import add_output, add_point_flags, feed_range, point_setup
 from planner.report.tables import analysis_json, analysis_table, characteristic_table
 
 __all__ = ["register"]
@@ -62,5 +62,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                     help="feeds [mm/s], N evenly spaced values")
     ps.add_argument("--force-limit-n", type=float, default=300.0,
                     help="resultant force limit [N] (thesis: 300 N)")
-    ps.add_argument("--plot", metavar="FILE.png", help="write the characteristic as a plot")
+    add_output(ps, "--plot", kind="file", metavar="FILE.png",
+               help="write the characteristic as a plot")
     ps.set_defaults(run=_cmd_stability)

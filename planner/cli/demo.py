@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from planner.cli._common import add_output
+
 __all__ = ["register"]
 
 
@@ -33,5 +35,6 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``demo``."""
     pd = sub.add_parser("demo", help="run the bundled example and write its outputs")
-    pd.add_argument("-o", "--output", default="out", help="output folder (default out/)")
+    add_output(pd, "-o", "--output", kind="folder", default="out",
+               help="output folder (default out/; made if missing)")
     pd.set_defaults(run=_cmd_demo)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from planner._atomic import output_errors
+from planner.cli._common import add_output
 from planner.export import krl_summary, plan_to_krl
 from planner.outputs import KrlOptions
 from robot_io.krl import CONTROLLERS, OVERRIDE_HOOKS, write_krl
@@ -16,8 +18,8 @@ def add_krl_flags(p: argparse.ArgumentParser, with_output: bool = True) -> None:
     """The KRL flags (shared with ``cctmill plan … --krl``)."""
     g = p.add_argument_group("KRL program")
     if with_output:
-        g.add_argument("-o", "--output", required=True, metavar="OUTDIR",
-                       help="folder for NAME.src, NAME.dat and any pages")
+        add_output(g, "-o", "--output", kind="folder", required=True, metavar="OUTDIR",
+                   help="folder for NAME.src, NAME.dat and any pages (made if missing)")
     g.add_argument("--name", help="program (module) name: a KRL name, at most 24 characters "
                                   "including the derived NAME_F001 (default: from the job name)")
     g.add_argument("--controller", choices=sorted(CONTROLLERS), default="krc4",
@@ -48,7 +50,8 @@ def export_from_args(plan: object, outdir: str, args: argparse.Namespace) -> lis
     """Export ``plan`` (a Plan or path) with the KRL flags of ``args``; print what was written."""
     prog = plan_to_krl(plan, **krl_options(args).kwargs())  # type: ignore[arg-type]
     summary = krl_summary(prog)
-    paths = write_krl(prog.spec, prog.sections, prog.moves, outdir, prog.notes)
+    with output_errors(outdir):
+        paths = write_krl(prog.spec, prog.sections, prog.moves, outdir, prog.notes)
     print(f"KRL program {prog.spec.name} for {CONTROLLERS[prog.spec.controller].label}: "
           f"{summary['sections']} sections, {summary['moves']} moves ("
           + ", ".join(f"{k} {v}" for k, v in sorted(summary["by_kind"].items()))

@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from planner.cli._common import add_reader_flags, reader_options
+from planner.cli._common import add_output, add_reader_flags, reader_options
 
 __all__ = ["inspect_table", "register"]
 
@@ -68,6 +68,15 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
         job = load_job(target)
         prep = prepare(job)
         out = inspect_job(prep)
+        infeasible = None
+        if out["reachability"]["all_reachable"]:  # a job that cannot be cut fails as in plan
+            from planner.plan import PlanInfeasibleError, check_feasible
+
+            try:
+                check_feasible(prep)
+            except PlanInfeasibleError as e:
+                infeasible = str(e)
+            out["feasible"] = {"ok": infeasible is None, "reason": infeasible}
         if args.plot:
             from planner.report.plots import plot_path_kinematics
 
@@ -93,6 +102,9 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
                 if e[key]:
                     print(f"  {key[:2]} {e[key]['min']:.3f} / {e[key]['mean']:.3f} / "
                           f"{e[key]['max']:.3f} mm (min/mean/max)")
+            if "feasible" in out:
+                print(f"feasible      {'yes' if infeasible is None else 'NO'}"
+                      + ("" if infeasible is None else f" ({infeasible})"))
             for w in e["warnings"] + out["warnings"]:
                 print(f"  warning: {w}")
             if args.plot:
@@ -102,6 +114,10 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
             first = r["problems"][0] if r["problems"] else ""
             print(f"cctmill inspect: error: {r['unreachable_samples']} samples of job "
                   f"{out['job']} cannot be reached; {first}".rstrip("; "), file=sys.stderr)
+            return 2
+        if infeasible is not None:
+            print(f"cctmill inspect: error: job {out['job']} cannot be cut: {infeasible}",
+                  file=sys.stderr)
             return 2
         return 0
     from robot_io.diagnostics import group_warnings
@@ -123,6 +139,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     pi.add_argument("file", help="toolpath (.nc/.ngc/.apt/.cl/.src) or job file (.toml)")
     pi.add_argument("--json", action="store_true", help="print JSON (SI)")
     add_reader_flags(pi)
-    pi.add_argument("--plot", metavar="FILE.png",
+    add_output(pi, "--plot", kind="file", metavar="FILE.png",
                     help="(job) joint angles and engagement along the path")
     pi.set_defaults(run=_cmd_inspect)

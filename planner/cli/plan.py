@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 from models.errors import InputError
+from planner.cli._common import add_output
 from planner.cli.export import krl_options
 from planner.demo import demo_job_file
 from planner.plan import METHODS, PlanResult
@@ -18,7 +19,8 @@ _LISTED_FILES = 4
 
 
 def section_table(res: PlanResult, limit: int = 40) -> str:
-    """The sections as a readable table (the first ``limit`` rows, then a count)."""
+    """The sections as a readable table (the first ``limit`` rows, then a count); ``#`` numbers
+    them from 1, as plan.json, the report and the KRL program do."""
     head = (f"{'#':>4} {'kind':5} {'s [m]':>15} {'feed mm/s':>9} {'binds':11} {'F max N':>8} "
             f"{'|δ| mm':>7} {'margin N/m':>10} {'γ deg':>7} {'t [s]':>7}  lines")
     out = [head, "-" * len(head)]
@@ -39,6 +41,11 @@ def section_table(res: PlanResult, limit: int = 40) -> str:
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
+    if len(args.job) > 1:               # a batch: one folder per job (planner/cli/_batch.py)
+        from planner.cli._batch import plan_batch_command
+
+        return plan_batch_command(args)
+    args.job = args.job[0] if args.job else None
     if args.demo == (args.job is not None):
         raise InputError("plan", "give a JOB.toml or --demo (not both)")
     job = demo_job_file() if args.demo else Path(args.job)
@@ -73,8 +80,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         for w in outputs.plan.warnings:
             print(f"  {w}")
     print(f"\n{res.method}: cycle {res.cycle_time:.2f} s (process {res.process_time:.2f} s), "
-          f"{len(res.plan_sections)} sections; solver {res.solver.status} "
-          f"({res.solver.iterations} iterations)")
+          f"{len(res.plan_sections)} sections; solver: {res.solver.describe()}")
     if res.cut_time > 0:
         print(f"cutting {res.cut_time:.2f} s; no plan with sections >= "
               f"{res.limits.section_length_min * 1e3:g} mm can cut faster than "
@@ -95,9 +101,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     """Add ``cctmill plan``."""
     p = sub.add_parser("plan", help="choose sections and feeds for a job and time it "
                                     "(plan.json, samples.npz, report.html)")
-    p.add_argument("job", nargs="?", help="job file (.toml)")
+    p.add_argument("job", nargs="*", help="job file (.toml); several: a batch on one engine, "
+                                          "one folder per job under -o (docs/placement.md)")
     p.add_argument("--demo", action="store_true", help="plan the bundled demo job")
-    p.add_argument("-o", "--output", default="out", help="output folder (default out/)")
+    add_output(p, "-o", "--output", kind="folder", default="out",
+               help="output folder (default out/; made if missing)")
     p.add_argument("--method", choices=METHODS, default=None,
                    help="optimize (CasADi + IPOPT, default), thesis (docs/model.md §8 section algorithm) "
                         "or constant (the safe constant feed)")
@@ -109,4 +117,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     add_krl_flags(p, with_output=False)
     p.add_argument("--json", action="store_true", help="print the plan summary as JSON")
+    p.add_argument("--scheduler", metavar="ADDR", help="a batch's engine: none, local (default) or "
+                                                       "tcp://HOST:PORT (cctmill place --help)")
+    p.add_argument("--workers", type=int, default=None, help="a batch's local worker processes")
     p.set_defaults(run=_cmd_plan)

@@ -17,6 +17,7 @@ import time
 
 from models.errors import InputError
 from robot_io.links.kvp_sim import KvpSimServer
+from robot_io.links.rsi_config import load_rsi_config
 from robot_io.links.rsi_sim import RsiSimController
 
 __all__ = ["register", "run"]
@@ -40,6 +41,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="rsi: cycle, 4 (KR C4 #IPO_FAST, default) or 12 (#IPO / KR C2)")
     p.add_argument("--timeout-packets", type=int, default=100,
                    help="rsi: consecutive late replies before RSIBad (default 100)")
+    p.add_argument("--rsi-config", metavar="ETHERNET.xml",
+                   help="rsi: the controller's RSI ETHERNET configuration (SENTYPE checked in replies, "
+                        "override channel and read-back tags; see docs/links.md)")
     p.add_argument("--programmed-speed-mm-s", type=float, default=1.0,
                    help="programmed path speed $VEL.CP of the simulated motion [mm/s] (default 1)")
     p.add_argument("--duration-s", type=float, default=None, help="stop after this long [s]")
@@ -90,8 +94,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"simulated KukaVarProxy listening on {host}:{port} (body_len "
               f"{'counts' if args.count_trailer else 'excludes'} the trailer); Ctrl-C to stop", flush=True)
     else:
+        config = load_rsi_config(args.rsi_config) if args.rsi_config else None
         peer = RsiSimController((args.host, args.port), cycle_s=args.cycle_ms * 1e-3,
-                                timeout_packets=args.timeout_packets, programmed_speed=speed)
+                                timeout_packets=args.timeout_packets, programmed_speed=speed, config=config)
         peer.start()
         print(f"simulated RSI controller sending <Rob> every {args.cycle_ms} ms to {args.host}:{args.port}"
               f" (RSIBad after {args.timeout_packets} late replies); Ctrl-C to stop", flush=True)

@@ -26,7 +26,7 @@ __all__ = ["register"]
 
 def register(sub) -> None:
     """Add the ``simulate`` subcommand to ``sub`` (argparse sub-parsers)."""
-    from planner.cli._common import add_point_flags
+    from planner.cli._common import add_output, add_point_flags
 
     p = sub.add_parser(
         "simulate", help="time-domain simulation of the cut on the flexible arm (forces, chatter)",
@@ -62,9 +62,10 @@ def register(sub) -> None:
     g.add_argument("--noise-n", type=float, default=0.0,
                    help="standard deviation of the force noise in --out [N] (default 0)")
     g.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
-    g.add_argument("--out", metavar="signal.csv",
+    add_output(g, "--out", kind="file", metavar="signal.csv",
                    help="write time, force, resultant, strain and displacement as CSV")
-    g.add_argument("--plot", metavar="FILE.png", help="plot the resultant force and its spectrum")
+    add_output(g, "--plot", kind="file", metavar="FILE.png",
+               help="plot the resultant force and its spectrum")
     p.set_defaults(run=run, process_model="oriented", mass="robot", criterion="floquet")
 
 

@@ -9,6 +9,10 @@
 A thin layer over :func:`planner.supervisor.session.supervise` (what the names mean is documented
 there): parses the flags into a :class:`~planner.supervisor.session.SessionConfig` and a
 :class:`~planner.supervisor.sim_cut.CutScenario`, runs, prints the summary as text or ``--json``.
+
+Exit status: 0 when the run needed no operator, :data:`EXIT_OPERATOR_ALARM` (3) when it raised an
+operator alarm (the controller did not apply the override, chatter escalated at the floor, or the
+run ended inside a chatter episode), 2 for a user's mistake.
 """
 
 from __future__ import annotations
@@ -17,17 +21,24 @@ import argparse
 import json
 
 from models.errors import InputError
+from planner._atomic import output_errors
+from planner.cli._common import add_output
+from planner.display import quantity
 from planner.plan_file import load_plan
+from planner.supervisor.metrics import episode_outcome_text, episode_timing_text
 from planner.supervisor.policy import SupervisorConfig
 from planner.supervisor.session import SessionConfig, supervise
 from planner.supervisor.sim_cut import CutScenario
 
-__all__ = ["register", "run"]
+__all__ = ["EXIT_OPERATOR_ALARM", "register", "run"]
+
+#: Exit status of a run that raised an operator alarm (its summary lists them).
+EXIT_OPERATOR_ALARM = 3
 
 #: Flags of the library's fields, for messages that name a field.
 _FLAGS = {"alpha_f": "--alpha-f", "cycle": "--cycle-ms", "duration": "--duration-s",
           "fs_hz": "--fs-hz", "sigma": "--sigma", "robot": "--robot", "signal": "--signal",
-          "sim_protocol": "--sim-protocol"}
+          "sim_protocol": "--sim-protocol", "rsi_config": "--rsi-config"}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -39,10 +50,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--robot", required=True, metavar="sim|kvp://HOST:PORT|rsi://BIND_HOST:PORT",
                    help="simulated controller over loopback, KukaVarProxy to connect to, or the RSI "
                         "server address to bind")
+    p.add_argument("--rsi-config", metavar="ETHERNET.xml",
+                   help="RSI: the controller's ETHERNET configuration (SENTYPE, correction element, "
+                        "override tags; see docs/links.md)")
     p.add_argument("--signal-column", metavar="NAME",
                    help="CSV value column (default: the first non-time column; e.g. resultant_N "
                         "for a `cctmill simulate --out` record)")
-    p.add_argument("--log", metavar="events.jsonl", help="append every decision as JSON lines")
+    add_output(p, "--log", kind="append", metavar="events.jsonl",
+               help="append every decision as JSON lines (in an existing folder)")
     p.add_argument("--fs-hz", type=float, help="sample rate [Hz] (files without a time column, sim; "
                                                "default 10000 for sim, from the stream for udp)")
     p.add_argument("--alpha-f", type=float, default=6e-5,
@@ -69,7 +84,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--seed", type=int, default=0, help="noise seed")
     g.add_argument("--fast", action="store_true",
                    help="--signal sim with kvp://: run on a virtual clock (no sleeping)")
-    p.add_argument("--plot", metavar="FILE.png",
+    add_output(p, "--plot", kind="file", metavar="FILE.png",
                    help="plot the band against its limit, the override and (sim) the true chatter")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(run=run)
@@ -99,21 +114,24 @@ def session_config(args: argparse.Namespace) -> SessionConfig:
                                     safe_pct=args.safe_pct),
         cycle=args.cycle_ms * 1e-3, duration=args.duration_s, fs_hz=args.fs_hz, sigma=args.sigma,
         learn=args.stable_s, start=args.start_mm * 1e-3, log=args.log, plot=args.plot,
-        signal_column=args.signal_column, sim_protocol=args.sim_protocol, fast=args.fast)
+        signal_column=args.signal_column, sim_protocol=args.sim_protocol, fast=args.fast,
+        rsi_config=args.rsi_config)
 
 
 def run(args: argparse.Namespace) -> int:
     """``cctmill supervise``: run the session, print its summary (text or JSON)."""
     plan = load_plan(args.plan)
     try:
-        summary = supervise(plan, args.signal, args.robot, session_config(args), _scenario(args))
+        with output_errors(args.log, args.plot, unnamed=False):   # the log is opened inside
+            summary = supervise(plan, args.signal, args.robot, session_config(args),
+                                _scenario(args))
     except InputError as e:
         if e.field in _FLAGS:   # a library field: say it as the flag the user typed
             raise InputError(_FLAGS[e.field], str(e).split(": ", 1)[-1]) from None
         raise
     doc = summary.as_json()
     print(json.dumps(doc, indent=2) if args.json else _text(doc))
-    return 0
+    return EXIT_OPERATOR_ALARM if summary.alarms else 0
 
 
 def _g(x: float | None) -> str:
@@ -129,10 +147,16 @@ def _text(s: dict) -> str:
         lat = s["step_latency_ms"]
         rows.append(f"steps         {s['steps']} over {s['duration_s']:.2f} s: "
                     + ", ".join(f"{k} {v}" for k, v in sorted(s["status_counts"].items())))
-        rows.append(f"step latency  p50 {lat['p50']} ms, p99 {lat['p99']} ms, max {lat['max']} ms "
-                    f"(cycle {lat['cycle']} ms; overruns {s['overruns']})")
-        rows.append(f"override      final {s['final_override']:.1f} %; link writes {s['link_writes']}, "
-                    f"failures {s['link_failures']}, downs {s['link_downs']}")
+        rows.append(f"step latency  p50 {quantity(lat['p50'], 'g', 'ms')}, p99 "
+                    f"{quantity(lat['p99'], 'g', 'ms')}, max {quantity(lat['max'], 'g', 'ms')} "
+                    f"(cycle {quantity(lat['cycle'], 'g', 'ms')}; overruns {s['overruns']})")
+        final = quantity(s["final_override"], ".1f", "%", missing="none commanded")
+        applied = quantity(s.get("final_applied_override"), ".0f", "%", missing="none reported")
+        rows.append(f"override      final {final}; applied by the controller {applied}; "
+                    f"link writes {s['link_writes']}, failures {s['link_failures']}, downs "
+                    f"{s['link_downs']}, refused {s.get('link_refusals', 0)}, not followed "
+                    f"{s.get('link_not_followed', 0)} (follow time "
+                    f"{quantity(s.get('follow_ms'), 'g', 'ms')})")
     ls = s["link_stats"]
     rows.append("link          " + ", ".join(f"{k} {v}" for k, v in ls.items() if k != "last_error")
                 + (f"; last error: {ls['last_error']}" if ls.get("last_error") else ""))
@@ -140,12 +164,15 @@ def _text(s: dict) -> str:
     rows.append("source        " + ", ".join(f"{k} {v}" for k, v in ss.items() if k != "last_error"))
     rows.append(f"episodes      {len(s['episodes'])}")
     for e in s["episodes"]:
-        extra = ""
-        if "detection_delay_ms" in e:
-            extra = (f"; detection delay {e['detection_delay_ms']} ms, onset to alarm "
-                     f"{e['onset_to_alarm_ms']} ms, settling {e['settling_ms']} ms")
+        timing = episode_timing_text(e)
         rows.append(f"  section {e['section']}: override {e['override_start']:.1f} -> "
-                    f"{e['override_min']:.1f} % (direction {e['direction']:+d}){extra}")
+                    f"{quantity(e['override_min'], '.1f')} % (direction {e['direction']:+d})"
+                    + (f"; {timing}" if timing else "") + f"; {episode_outcome_text(e)}")
+    alarms = s.get("alarms", [])
+    rows.append(f"operator      {len(alarms)} alarm(s)" + (
+        f" (exit status {EXIT_OPERATOR_ALARM})" if alarms else ": none needed"))
+    for a in alarms:
+        rows.append(f"  at {a['after_s']:.3f} s, section {a['section']}, {a['kind']}: {a['reason']}")
     if s.get("log"):
         rows.append(f"log           {s['log']}")
     if s.get("plot"):

@@ -20,6 +20,7 @@ import numpy as np
 
 from models.errors import CctmillError
 from planner._atomic import atomic_path, write_text_atomic
+from planner.display import quantity
 from planner.report.plots import new_figure, save_figure
 
 __all__ = [
@@ -194,8 +195,25 @@ def _table(headers: list[str], rows: list[list[Any]], colour_col: int | None = N
     return "\n".join(out)
 
 
-def _fmt(v: Any, spec: str = ".3g") -> str:
-    return "—" if v is None else format(v, spec)
+#: What a limit the plan does not hold (null in plan.json's ``constraints``) is shown as.
+_NOT_LIMITED = "not limited"
+
+
+def _limit_rows(lim, safety_factor: float) -> list[list[str]]:
+    """The limits table: every value to 6 significant digits, a missing limit in words."""
+    return [[k, quantity(v, "g", missing=_NOT_LIMITED) if k != "safety_factor"
+             else quantity(v, "g")] for k, v in lim.as_json(safety_factor).items()]
+
+
+def _section_row(r: dict[str, Any]) -> list[str]:
+    """One row of the section table (``r`` a plan.json section: ``index`` numbers from 1)."""
+    lines = (f"{r['line_start']}–{r['line_end']}" if r.get("line_start") is not None
+             else quantity(None))
+    return [str(r["index"]), r["kind"], quantity(r["s_start_m"], ".4f"),
+            quantity(r["s_end_m"], ".4f"), quantity(r["feed_mm_s"], ".3f"), r["binding"],
+            quantity(r["force_max_N"], ".1f"), quantity(r["deflection_max_mm"], ".3f"),
+            quantity(r["margin_N_per_m"], ".3g"), quantity(r["gamma_deg"], ".2f"),
+            quantity(r["time_s"], ".2f"), lines, r.get("note") or ""]
 
 
 _CSS = """body{font-family:system-ui,sans-serif;margin:1.5em;max-width:1200px;color:#222}
@@ -230,8 +248,9 @@ def _warnings_box(res) -> str:
     return "\n".join(out)
 
 
-def write_report(res, folder: str | os.PathLike) -> dict[str, Path]:
-    """Write the PNGs and ``report.html`` into ``folder``; return the paths by name."""
+def write_report(res, folder: str | os.PathLike, sections: tuple[str, ...] = ()) -> dict[str, Path]:
+    """Write the PNGs and ``report.html`` into ``folder``; return the paths by name. ``sections``:
+    more HTML sections at the end (a placement study's, :mod:`planner.report.placement`)."""
     out = Path(folder)
     along = plot_along_path(res, out / "plan_along_path.png")
     chars = plot_characteristics(res, out / "plan_characteristics.png")
@@ -241,11 +260,10 @@ def write_report(res, folder: str | os.PathLike) -> dict[str, Path]:
             "process time Σ L/f [s]": f"{res.process_time:.2f}",
             "cutting time [s]": (f"{res.cut_time:.2f}; no plan with sections ≥ "
                                  f"{lim.section_length_min * 1e3:g} mm can cut in less than "
-                                 f"{res.cut_time_bound:.2f}"),
+                                 f"{quantity(res.cut_time_bound, '.2f')}"),
             "sections (cut)": f"{len(rows)} ({sum(r['kind'] == 'cut' for r in rows)})",
             "robot-limited sections": sum(r["robot_limited"] for r in rows),
-            "solver": f"{res.solver.status}, {res.solver.iterations} iterations, build "
-                      f"{res.solver.build_time:.3f} s, solve {res.solver.solve_time:.3f} s",
+            "solver": res.solver.describe(),
             "model": f"{prep.job.model.process_model} process model, {prep.job.model.mass_model} "
                      f"mass, {prep.job.model.chatter_criterion} criterion, CCT "
                      f"{'on' if prep.job.model.cct else 'off'}"}
@@ -259,11 +277,7 @@ def write_report(res, folder: str | os.PathLike) -> dict[str, Path]:
     counts: dict[str, int] = {}
     for r in rows:
         counts[r["binding"]] = counts.get(r["binding"], 0) + 1
-    sec_rows = [[r["index"], r["kind"], f"{r['s_start_m']:.4f}", f"{r['s_end_m']:.4f}",
-                 f"{r['feed_mm_s']:.3f}", r["binding"], _fmt(r["force_max_N"], ".1f"),
-                 _fmt(r["deflection_max_mm"], ".3f"), _fmt(r["margin_N_per_m"]),
-                 _fmt(r["gamma_deg"], ".2f"), f"{r['time_s']:.2f}",
-                 f"{r['line_start']}–{r['line_end']}", r["note"]] for r in rows]
+    sec_rows = [_section_row(r) for r in rows]
     doc = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>cctmill plan: {html.escape(prep.job.job.name)}</title>
 <style>{_CSS}</style></head><body>
@@ -279,12 +293,14 @@ colour says what stops it going faster. Files: plan.json (sections), samples.npz
 <h2>Stability characteristic of the three tightest sections</h2>
 {_img(chars)}
 <h2>Limits</h2>
-{_table(["limit", "value"], [[k, _fmt(v, "g") if isinstance(v, float) else v]
-                             for k, v in lim.as_json(res.safety_factor).items()])}
+{_table(["limit", "value"], _limit_rows(lim, res.safety_factor))}
 <h2>Sections</h2>
+<p class="note">Sections are numbered from 1 in path order, as in plan.json (<code>index</code>),
+the KRL program (<code>;FOLD section N</code>, <code>NAME_F00N</code>) and the supervisor's log.</p>
 {_table(["#", "kind", "s start [m]", "s end [m]", "feed [mm/s]", "binds", "force max [N]",
          "|δ| max [mm]", "margin min [N/m]", "γ [deg]", "time [s]", "lines", "note"],
         sec_rows, colour_col=5)}
+{"".join(sections)}
 </body></html>
 """
     report = write_text_atomic(out / "report.html", doc)

@@ -3,9 +3,11 @@ envelope.
 
 One module per part: the detector (:mod:`~planner.supervisor.detector`), the section's stability
 characteristic (:mod:`~planner.supervisor.characteristic`), the override policy
-(:mod:`~planner.supervisor.policy`), the loop and its clock (:mod:`~planner.supervisor.loop`), a
-whole supervised run (:mod:`~planner.supervisor.session`), the event log, metrics and plot, and the
-simulated cut and cell used to test it without a robot (:mod:`~planner.supervisor.sim_cut`,
+(:mod:`~planner.supervisor.policy`) and how it judges a chatter episode's moves
+(:mod:`~planner.supervisor.episode`), the check that the controller applies the override
+(:mod:`~planner.supervisor.link_watch`), the loop and its clock (:mod:`~planner.supervisor.loop`),
+a whole supervised run (:mod:`~planner.supervisor.session`), the event log, metrics and plot, and
+the simulated cut and cell used to test it without a robot (:mod:`~planner.supervisor.sim_cut`,
 :mod:`~planner.supervisor.sim_cell`)."""
 
 from planner.supervisor.characteristic import (
@@ -32,8 +34,27 @@ from planner.supervisor.detector import (
     detail_filter,
     select_level,
 )
+from planner.supervisor.episode import (
+    AT_FLOOR_TOL_PCT,
+    ESCALATE_PERIODS,
+    GROWTH_RATIO,
+    NOT_FALLING_RATIO,
+    Episode,
+    OperatorAlarm,
+    judge,
+)
 from planner.supervisor.event_log import (
     EventLog,
+)
+from planner.supervisor.link_watch import (
+    FOLLOW_MIN_CHECKS,
+    FOLLOW_TOL_PCT,
+    KVP_FOLLOW_S,
+    NO_REPORT_S,
+    RSI_FOLLOW_CYCLES,
+    LinkFault,
+    LinkWatch,
+    follow_time,
 )
 from planner.supervisor.loop import (
     LoopReport,
@@ -44,6 +65,8 @@ from planner.supervisor.metrics import (
     EpisodeMetrics,
     band_gain,
     episode_metrics,
+    episode_outcome_text,
+    episode_timing_text,
 )
 from planner.supervisor.plot import (
     RunTrace,
@@ -51,7 +74,6 @@ from planner.supervisor.plot import (
 )
 from planner.supervisor.policy import (
     STATUSES,
-    Episode,
     StepResult,
     StepStatus,
     Supervisor,
@@ -77,6 +99,7 @@ from planner.supervisor.sim_cut import (
 )
 
 __all__ = [
+    "AT_FLOOR_TOL_PCT",
     "BandMonitor",
     "Characteristic",
     "CutScenario",
@@ -87,14 +110,25 @@ __all__ = [
     "Detector",
     "DetectorOutput",
     "EDGE_OCTAVES",
+    "ESCALATE_PERIODS",
     "Episode",
     "EpisodeMetrics",
     "EventLog",
     "FLAT_MARGIN_REL",
+    "FOLLOW_MIN_CHECKS",
+    "FOLLOW_TOL_PCT",
+    "GROWTH_RATIO",
+    "KVP_FOLLOW_S",
     "LevelChoice",
+    "LinkFault",
+    "LinkWatch",
     "LoopReport",
+    "NOT_FALLING_RATIO",
+    "NO_REPORT_S",
     "OVERSAMPLE",
+    "OperatorAlarm",
     "ROBOTS",
+    "RSI_FOLLOW_CYCLES",
     "RunTrace",
     "STATUSES",
     "SessionConfig",
@@ -114,8 +148,12 @@ __all__ = [
     "control_limit",
     "detail_filter",
     "episode_metrics",
+    "episode_outcome_text",
+    "episode_timing_text",
     "feed_limit_for_force",
+    "follow_time",
     "force_at",
+    "judge",
     "margin_at",
     "plot_run",
     "run_loop",

@@ -118,14 +118,14 @@ def select_level(fs_hz: float, chatter_hz: float, tooth_hz: float | None = None)
         InputError: non-positive or non-finite rates, or f_c at or above the Nyquist frequency.
     """
     if not (math.isfinite(fs_hz) and fs_hz > 0):
-        raise InputError("fs_hz", f"sample rate must be positive, got {fs_hz}")
+        raise InputError("fs_hz", f"sample rate must be positive, got {fs_hz:g} Hz")
     if not (math.isfinite(chatter_hz) and 0 < chatter_hz < fs_hz / 2):
-        raise InputError("chatter frequency", f"{chatter_hz} Hz must lie in (0, f_s/2 = {fs_hz / 2} Hz):"
-                         " raise the sample rate")
+        raise InputError("chatter frequency", f"{chatter_hz:.6g} Hz must lie in (0, f_s/2 = "
+                         f"{fs_hz / 2:.6g} Hz): raise the sample rate")
     jc = int(math.floor(math.log2(fs_hz / chatter_hz)))
     jc = max(1, jc)
     if jc > MAX_LEVEL:
-        raise InputError("fs_hz", f"level {jc} needed for {chatter_hz} Hz at {fs_hz} Hz; lower the "
+        raise InputError("fs_hz", f"level {jc} needed for {chatter_hz:.6g} Hz at {fs_hz:.6g} Hz; lower the "
                          f"sample rate (at most level {MAX_LEVEL})")
     band = _band(fs_hz, jc)
     if not _inside(tooth_hz, band):
@@ -157,7 +157,7 @@ def control_limit(alpha_f: float) -> float:
         InputError: α_f outside (0, 1).
     """
     if not (math.isfinite(alpha_f) and 0 < alpha_f < 1):
-        raise InputError("alpha_f", f"false-alarm rate must lie in (0, 1), got {alpha_f}")
+        raise InputError("alpha_f", f"false-alarm rate must lie in (0, 1), got {alpha_f:g}")
     return NormalDist().inv_cdf(1.0 - alpha_f / 2.0)
 
 
@@ -305,6 +305,15 @@ class Detector:
         """Signal time before the first band value [s] (one filter length)."""
         return self.monitor.length / self.fs_hz
 
+    @property
+    def delay_s(self) -> float:
+        """How long the band lags its input [s]: the energy centroid of the band filter (a
+        Daubechies filter is not linear-phase; its centroid is near the middle: 0.179 s for db4 at
+        level 9 and 10 kHz, the measured median detection delay being 0.18 s). A change of the
+        chatter amplitude shows in the band about this much later."""
+        g2 = self.monitor.filter**2
+        return float(np.sum(np.arange(g2.size) * g2) / np.sum(g2)) / self.fs_hz
+
     def learn(self, values: np.ndarray) -> float:
         """Set σ to the RMS of the band over ``values`` (a stable-cutting record); return it.
 
@@ -321,7 +330,7 @@ class Detector:
         sigma = float(np.sqrt(np.mean(d * d)))
         scale = float(np.max(np.abs(v))) if v.size else 0.0
         if not (math.isfinite(sigma) and sigma > NO_CONTENT_REL * scale and sigma > 0):
-            raise InputError("stable window", f"band RMS is {sigma}: the record has no content in "
+            raise InputError("stable window", f"band RMS is {sigma:.4g}: the record has no content in "
                              f"the band {self.choice.band_hz[0]:.3g}-{self.choice.band_hz[1]:.3g} Hz")
         self.sigma = sigma
         return sigma

@@ -1,8 +1,9 @@
 """The supervisor's decision log: JSON lines, one object per decision.
 
-Each line holds at least ``t_s`` (supervisor clock [s]), ``section``, ``band`` (largest |detail| of
-the step, or null), ``ucl`` (the control limit in force), ``override`` [percent], ``status`` and
-``reason`` (in words). The file is opened line-buffered and appended to.
+Each line holds at least ``t_s`` (supervisor clock [s]), ``section`` (the running section's
+number, from 1, as plan.json, the report and the KRL program number it), ``band`` (largest
+|detail| of the step, or null), ``ucl`` (the control limit in force), ``override`` [percent],
+``status`` and ``reason`` (in words). The file is opened line-buffered and appended to.
 
 Writing is split in two so that a supervisor step never waits for a disk: :meth:`EventLog.write`
 (called inside the step) only appends the record to a bounded in-memory list; :meth:`EventLog.drain`

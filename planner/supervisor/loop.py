@@ -6,15 +6,22 @@ wall time, the sockets staying real). Each iteration:
 
 1. ``before_step(now)`` (the simulated cut's DAQ: generate and send samples), if given;
 2. ``source.read`` → chunk; ``link.read_override()`` → the override the controller confirmed;
-3. :meth:`Supervisor.step` (its duration is the *step latency*, measured with ``perf_counter``,
+3. the :class:`~planner.supervisor.link_watch.LinkWatch` judges the link — refused writes
+   (``link.stats.refused`` went up) or a reported override that does not follow the command
+   within the link's follow time — and hands a fault to :meth:`Supervisor.link_fault` (count,
+   log, operator alarm, hold), so the step of the same cycle already holds;
+4. :meth:`Supervisor.step` (its duration is the *step latency*, measured with ``perf_counter``,
    and its CPU time with ``thread_time``);
-4. ``link.set_override`` when the integer override changes, every ``keepalive_s``, and at once
+5. ``link.set_override`` when the integer override changes, every ``keepalive_s``, and at once
    when ``link.connected`` comes back after an outage;
-5. the decision log is drained to its file (after the step, so no step waits for the disk).
+6. every new operator alarm of the supervisor goes to ``on_alarm`` (e.g. a stop request to the
+   controller), if given;
+7. the decision log is drained to its file (after the step, so no step waits for the disk).
 
-Nothing here raises from inside the loop: a source or link that throws (they should not) is
-counted and treated as "no samples" / "link down". Link transitions (down, back) are logged in
-the supervisor's event log.
+When the run ends, :meth:`Supervisor.finish` closes an episode still open (escalated). Nothing
+here raises from inside the loop: a source or link that throws (they should not) is counted and
+treated as "no samples" / "link down". Link transitions (down, back) are logged in the
+supervisor's event log.
 """
 
 from __future__ import annotations
@@ -28,6 +35,8 @@ from typing import Any
 
 import numpy as np
 
+from planner.supervisor.episode import OperatorAlarm
+from planner.supervisor.link_watch import LinkWatch, follow_time
 from planner.supervisor.policy import StepResult, Supervisor
 from robot_io.links.base import RobotLink
 from robot_io.signals.base import SignalSource, empty_chunk
@@ -67,8 +76,15 @@ class LoopReport:
         overruns: iterations whose work took longer than the cycle.
         link_writes: set_override calls; link_failures: calls answered not ok.
         link_downs: times the link went from up (connected and writes ok) to down.
+        link_refusals: override writes the controller refused during the run (the link's count).
+        link_not_followed: times the override the controller reports stopped following the
+            command (RSI's only sign of a refusal).
+        follow_s: the follow time the link was judged with [s].
+        t_start: the loop's clock at its first cycle [s].
         status_counts: steps per supervisor status.
         last: the last step's result.
+        last_applied: the override the controller reported last [percent] (None: none).
+        alarms: the operator alarms raised during the run.
         extra: free-form additions (the CLI adds source and link statistics).
     """
 
@@ -81,8 +97,14 @@ class LoopReport:
     link_writes: int = 0
     link_failures: int = 0
     link_downs: int = 0
+    link_refusals: int = 0
+    link_not_followed: int = 0
+    follow_s: float = math.nan
+    t_start: float = math.nan
     status_counts: dict[str, int] = field(default_factory=dict)
     last: StepResult | None = None
+    last_applied: float | None = None
+    alarms: list[OperatorAlarm] = field(default_factory=list)
     extra: dict[str, Any] = field(default_factory=dict)
 
 
@@ -92,8 +114,16 @@ def run_loop(sup: Supervisor, source: SignalSource, link: RobotLink, duration_s:
              before_step: Callable[[float], None] | None = None,
              on_step: Callable[[float, StepResult], None] | None = None,
              should_stop: Callable[[], bool] | None = None,
-             keepalive_s: float = 0.5, freeze_gc: bool = True) -> LoopReport:
+             keepalive_s: float = 0.5, freeze_gc: bool = True,
+             follow_s: float | None = None,
+             on_alarm: Callable[[OperatorAlarm], None] | None = None) -> LoopReport:
     """Run the supervisor for ``duration_s`` [s] (see the module docstring); return the report.
+
+    ``follow_s`` is the time the controller has to show a commanded override [s] (None: the
+    link's own, :func:`~planner.supervisor.link_watch.follow_time`, for RSI from the controller's
+    cycle the link learns); ``on_alarm`` is called with
+    every operator alarm as it is raised (it must return quickly; what it raises is counted in
+    ``extra["on_alarm_error"]``).
 
     With ``freeze_gc`` (default) the garbage collector is run once, every object alive at the
     start is frozen (``gc.freeze``) for the loop's duration, and the automatic collector is off
@@ -114,9 +144,12 @@ def run_loop(sup: Supervisor, source: SignalSource, link: RobotLink, duration_s:
         gc.freeze()
         gc.disable()
     try:
+        watch = LinkWatch(follow_s if follow_s is not None else (lambda: follow_time(link, cycle_s)),
+                          _refused(link)[0],
+                          clock=None if clock is time.monotonic else time.monotonic)
         return _loop(sup, source, link, duration_s, cycle_s, clock, sleep, before_step, on_step,
                      should_stop, keepalive_s, rep, step_lat, step_cpu, cyc_lat, n_max,
-                     young_gc=freeze_gc)
+                     young_gc=freeze_gc, watch=watch, on_alarm=on_alarm)
     finally:
         if freeze_gc:
             gc.unfreeze()
@@ -124,14 +157,27 @@ def run_loop(sup: Supervisor, source: SignalSource, link: RobotLink, duration_s:
                 gc.enable()
 
 
+def _refused(link: Any) -> tuple[int, str]:
+    """(refused writes so far, last error) of a link; (0, "") when it cannot say."""
+    try:
+        st = link.stats
+        return int(getattr(st, "refused", 0)), str(getattr(st, "last_error", ""))
+    except Exception:  # noqa: BLE001 - a link should not raise; then it reports nothing
+        return 0, ""
+
+
 def _loop(sup, source, link, duration_s, cycle_s, clock, sleep, before_step, on_step, should_stop,
-          keepalive_s, rep, step_lat, step_cpu, cyc_lat, n_max, young_gc=False) -> LoopReport:
+          keepalive_s, rep, step_lat, step_cpu, cyc_lat, n_max, young_gc=False, watch=None,
+          on_alarm=None) -> LoopReport:
     max_samples = max(1, int(8 * cycle_s * max(sup.fs_hz, 1.0)) + 64)
     t_start = clock()
+    rep.t_start = t_start
     next_t = t_start
     last_sent: int | None = None
     last_send_t = -math.inf
     link_ok = True
+    n_alarms = len(sup.alarms)
+    now = t_start
     k = 0
     while k < n_max:
         now = clock()
@@ -151,16 +197,22 @@ def _loop(sup, source, link, duration_s, cycle_s, clock, sleep, before_step, on_
             applied = link.read_override()
         except Exception:  # noqa: BLE001
             applied = None
+        rep.last_applied = applied
+        try:
+            up = bool(link.connected)
+        except Exception:  # noqa: BLE001
+            up = False
+        if watch is not None:
+            refused, last_error = _refused(link)
+            fault = watch.check(now, applied, up, refused, last_error)
+            if fault is not None:
+                sup.link_fault(now, fault)
         c0 = time.thread_time()
         s0 = time.perf_counter()
         res = sup.step(now, chunk, applied)
         s1 = time.perf_counter()
         step_cpu[k] = time.thread_time() - c0
         cmd = int(math.floor(res.override + 0.5))
-        try:
-            up = bool(link.connected)
-        except Exception:  # noqa: BLE001
-            up = False
         why = "link reports not connected"
         if up and not link_ok:
             last_sent = None  # link back: send the override again at once
@@ -173,17 +225,20 @@ def _loop(sup, source, link, duration_s, cycle_s, clock, sleep, before_step, on_
             rep.link_writes += 1
             last_send_t = now
             last_sent = cmd  # refused or not, the link keeps the value and sends it when it is up
+            if watch is not None:
+                watch.commanded(now, cmd)
             if not sent_ok:
                 rep.link_failures += 1
             up = up and sent_ok
         if up != link_ok:
             if not up:
                 rep.link_downs += 1
-            sup.log.write({"t_s": now, "section": res.section, "band": res.band, "ucl": res.ucl,
+            sup.log.write({"t_s": now, "section": res.section_number, "band": res.band, "ucl": res.ucl,
                            "override": res.override, "status": res.status,
                            "reason": ("controller link down: " + why) if not up
                            else "controller link back: override resent"})
             link_ok = up
+        n_alarms = _hand_on(sup, n_alarms, on_alarm, rep)
         sup.log.drain()  # the decisions of this step go to disk now, outside the step
         w1 = time.perf_counter()
         step_lat[k] = s1 - s0
@@ -203,9 +258,30 @@ def _loop(sup, source, link, duration_s, cycle_s, clock, sleep, before_step, on_
             sleep(delay)
         else:
             next_t = clock()  # behind: do not try to catch up with a burst
+    sup.finish(now)   # an episode still open ends now: escalated
+    _hand_on(sup, n_alarms, on_alarm, rep)
+    sup.log.drain()
+    rep.alarms = list(sup.alarms)
+    if watch is not None:
+        rep.link_refusals, rep.link_not_followed = watch.refusals, watch.not_followed
+        rep.follow_s = watch.follow_s
     rep.steps = k
     rep.duration_s = clock() - t_start
     rep.step_latency_s = step_lat[:k]
     rep.step_cpu_s = step_cpu[:k]
     rep.cycle_latency_s = cyc_lat[:k]
     return rep
+
+
+def _hand_on(sup: Supervisor, n_done: int, on_alarm: Callable[[OperatorAlarm], None] | None,
+             rep: LoopReport) -> int:
+    """Give the supervisor's operator alarms after the first ``n_done`` to ``on_alarm``; return
+    how many there are now."""
+    n = len(sup.alarms)
+    if on_alarm is not None:
+        for alarm in sup.alarms[n_done:n]:
+            try:
+                on_alarm(alarm)
+            except Exception as e:  # noqa: BLE001 - a hook must not stop the loop
+                rep.extra["on_alarm_error"] = repr(e)
+    return n

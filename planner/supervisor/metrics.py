@@ -13,20 +13,24 @@ Definitions (times on the simulation's clock, i.e. the signal's time stamps):
 - *settling time* = from the first alarm until the true chatter amplitude falls back under the
   visibility level a_vis = UCL / gain for good within the episode (the closed loop's answer);
 - *quiet time* = from the first alarm until the supervisor declares the band quiet (its episode
-  end minus the ``quiet_s`` wait).
+  end minus the ``quiet_s`` wait); only for an episode that ended resolved (an escalated one was
+  never declared quiet).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
+from planner.display import quantity
 from planner.supervisor.policy import Supervisor
 from planner.supervisor.sim_cut import CutTruth
 
-__all__ = ["EpisodeMetrics", "band_gain", "episode_metrics"]
+__all__ = ["EpisodeMetrics", "band_gain", "episode_metrics", "episode_outcome_text",
+           "episode_timing_text"]
 
 
 @dataclass(frozen=True)
@@ -91,7 +95,50 @@ def episode_metrics(sup: Supervisor, truth: CutTruth, chatter_hz: float, onset_s
             detection_delay_s=None if visible is None else float(alarm - visible),
             onset_to_alarm_s=(None if onset_s is None or k else float(alarm - onset_s)),
             settling_s=settling,
-            quiet_s=None if end is None else float(end - sup.cfg.quiet_s - alarm),
+            quiet_s=(None if end is None or ep.outcome != "resolved"
+                     else float(end - sup.cfg.quiet_s - alarm)),
             override_start=ep.override_start, override_min=ep.override_min,
             direction=ep.direction))
     return out
+
+
+def episode_timing_text(episode: dict[str, Any]) -> str:
+    """An episode's timing in words, from the summary's episode (``*_ms`` keys, null where the
+    record does not have it): what a missing time means, never ``None ms``; empty when the run had
+    no simulated truth to time it against."""
+    if "detection_delay_ms" not in episode:
+        return ""
+    delay = episode.get("detection_delay_ms")
+    parts = ["alarm before the chatter reached the visible amplitude (a transient, not chatter)"
+             if delay is None else f"detected {quantity(delay, '.0f', 'ms')} after the chatter "
+             "became visible"]
+    onset = episode.get("onset_to_alarm_ms")
+    if onset is not None:        # only the first episode follows the scenario's onset
+        parts.append(f"{quantity(onset, '.0f', 'ms')} from the onset to the alarm")
+    settle = episode.get("settling_ms")
+    parts.append("the chatter not gone by the end of the record" if settle is None
+                 else f"gone {quantity(settle, '.0f', 'ms')} after the alarm")
+    quiet = episode.get("quiet_ms")
+    if quiet is not None:
+        parts.append(f"declared quiet {quantity(quiet, '.0f', 'ms')} after the alarm")
+    elif episode.get("outcome") is None:
+        parts.append("the episode still open at the end")
+    return ", ".join(parts)
+
+
+def episode_outcome_text(episode: dict[str, Any]) -> str:
+    """How an episode of the summary went, in words: that its overrides are the ones the
+    controller applied (and its lowest target), a reversal, and how it ended."""
+    parts = ["overrides applied by the controller"
+             + (f" (lowest target {quantity(episode['target_min'], '.0f', '%')})"
+                if episode.get("target_min") is not None else "")]
+    rev = episode.get("reversed_after_ms")
+    if rev is not None:
+        parts.append(f"the raise reversed {quantity(rev, '.0f', 'ms')} after the alarm")
+    outcome = episode.get("outcome")
+    why = episode.get("outcome_reason") or ""
+    if outcome == "resolved":
+        parts.append("resolved")
+    elif outcome is not None:
+        parts.append(f"{outcome}: {why}" if why else outcome)
+    return "; ".join(parts)

@@ -4,40 +4,18 @@ One :meth:`Supervisor.step` per controller cycle: it takes the chunk of samples 
 the override the controller last confirmed, and returns a :class:`StepResult` with the override to
 command. It never raises: an internal failure returns status ``error`` and holds the last override.
 
-Policy (docs/model.md §9):
-
-- **Where am I.** The path position is dead-reckoned from the plan: s advances by the section's
-  planned feed × the applied override per unit time (the robot links report no position). The
-  section gives the planned feed, the stability characteristic and the force limit.
-- **Envelope.** The override never exceeds 100 % (the planned feed) nor the override at which the
-  characteristic's force reaches ``force_max_N``; it never goes under the floor (unless the force
-  limit itself is lower). Changes follow a ruckig trajectory: jerk- and acceleration-limited, fast
-  back-off (``backoff_pct_s``) and slow recovery (``recover_pct_s``); a stabilising move upwards
-  during an alarm (the characteristic says "faster") is as fast as a back-off.
-- **Alarm** (band over the control limit): move the override in the stabilising direction of the
-  characteristic at the current feed, by ``gain_pct`` × the relative excess (at most
-  ``max_step_pct``) from the override at the episode's start; an alarm that outlasts ``persist_s``
-  at the reached target takes one more step from there. Where the characteristic offers no
-  stabilising direction (flat margin), or says "faster" while the override is already at its cap,
-  back off towards the floor and say so. The override at the alarm's start, × ``ceiling_factor``,
-  becomes the section's ceiling at once; when the episode ends, the ceiling drops to halfway between
-  the override where it chattered and the lowest one of the episode (a bisection of the real
-  stability boundary, episode by episode): recovery does not climb back into the chatter.
-- **Quiet** for ``quiet_s`` after the last alarm: recover towards min(100 %, ceiling).
-- **Signal.** Non-finite, out-of-range (|value| > ``plausible_max``), stuck (a constant chunk of
-  ``stuck_samples`` or more) or time-reversed samples are dropped and counted; a gap restarts the
-  band filter (a warm-up, during which the override holds), and so does a source whose clock
-  restarted (stamps more than ``RESTART_BACK_S`` before the previous ones: a new stream). No
-  valid samples for ``hold_after_s``: hold the override; for ``signal_timeout_s``: go to the safe
-  override.
-
-Every decision is written to the :class:`~planner.supervisor.event_log.EventLog`: status changes, every alarm
-step, every new target, and a heartbeat every ``heartbeat_s`` while nothing changes.
+The policy — what the controller applies, where the tool is, the envelope, alarms, how a move is
+judged over one decision period (:mod:`planner.supervisor.episode`), how an episode ends, quiet and
+recovery, bad signals — is described in docs/supervisor.md ("Policy", "When the controller does
+not apply the override") and docs/model.md §9. Every decision is written to the
+:class:`~planner.supervisor.event_log.EventLog` with its reason (records with ``"event":
+"operator_alarm"`` for the alarms), with a heartbeat every ``heartbeat_s`` while nothing changes;
+operator alarms are kept in :attr:`Supervisor.alarms`. The step's types (status, configuration,
+result) are in :mod:`planner.supervisor.step`.
 """
 
 from __future__ import annotations
 
-import enum
 import math
 from dataclasses import dataclass
 
@@ -53,150 +31,36 @@ from planner.supervisor.characteristic import (
     force_at,
     stabilising_direction,
 )
-from planner.supervisor.detector import DEFAULT_WAVELET, Detector, select_level
+from planner.supervisor.detector import Detector, select_level
+from planner.supervisor.episode import (
+    AT_FLOOR_TOL_PCT,
+    ESCALATE_PERIODS,
+    NOT_FALLING_RATIO,
+    Episode,
+    OperatorAlarm,
+    judge,
+)
 from planner.supervisor.event_log import EventLog
+from planner.supervisor.link_watch import LinkFault
+from planner.supervisor.signal_check import chunk_problem
+from planner.supervisor.step import (
+    MAX_DT_S,
+    MIN_LEARN_VALUES,
+    STATUSES,
+    TARGET_EPS_PCT,
+    StepResult,
+    StepStatus,
+    SupervisorConfig,
+)
 from robot_io.signals.base import SignalChunk
 
 __all__ = [
     "STATUSES",
-    "Episode",
     "StepResult",
     "StepStatus",
     "Supervisor",
     "SupervisorConfig",
 ]
-
-#: Step statuses: ``ok`` monitoring, nothing to do; ``learning`` collecting the stable window;
-#: ``warmup`` the band filter is filling (after start or a gap): override held; ``alarm`` chatter:
-#: backing off; ``quiet`` band under the limit, waiting before recovery; ``recover`` climbing back
-#: towards the plan; ``hold`` signal missing or implausible: override held; ``safe`` signal lost
-#: for too long: safe override; ``error`` internal failure: override held.
-class StepStatus(enum.StrEnum):
-    """What a supervisor step is doing (a ``str``: compares and serialises as its value)."""
-
-    OK = "ok"              # monitoring, no alarm
-    LEARNING = "learning"  # learning σ of stable cutting
-    WARMUP = "warmup"      # band filters settling after a start, restart or gap
-    ALARM = "alarm"        # the band is over its limit: the override is being moved
-    QUIET = "quiet"        # after an alarm, waiting for the band to stay quiet
-    RECOVER = "recover"    # returning towards the planned feed
-    HOLD = "hold"          # no signal: holding the last override
-    SAFE = "safe"          # signal lost too long: the safe override
-    ERROR = "error"        # an internal failure: holding the last override, said in the reason
-
-
-#: Every status, in :class:`StepStatus` order.
-STATUSES = tuple(StepStatus)
-#: Override changes smaller than this are not a new target [percent].
-TARGET_EPS_PCT = 1e-6
-#: Band values needed before σ is taken as learned.
-MIN_LEARN_VALUES = 100
-#: Samples stamped more than this before the previous ones mean the source restarted its clock
-#: (a new stream, accepted after a filter warm-up); less far back they are stale and dropped [s].
-RESTART_BACK_S = 0.5
-#: A time step longer than this is taken as a stall, not as motion [s].
-MAX_DT_S = 0.5
-
-
-@dataclass(frozen=True)
-class SupervisorConfig:
-    """Tuning of the supervisor (percent of the planned feed; seconds; the signal's unit).
-
-    Attributes:
-        alpha_f: false-alarm rate per band value (L_c from Φ(L_c) = 1 − α_f/2).
-        wavelet: PyWavelets name of the DWT.
-        chatter_hz: expected chatter frequency when the plan has no natural frequencies [Hz].
-        floor_pct: lowest override the supervisor commands.
-        safe_pct: override after the signal is lost (None: the floor).
-        backoff_pct_s, recover_pct_s: largest override rates down and up [%/s].
-        accel_pct_s2, jerk_pct_s3: ruckig limits of the override trajectory.
-        gain_pct: override change per unit of relative excess over the limit [%].
-        max_step_pct: largest change of the target per step [%].
-        quiet_s: band under the limit this long before recovery starts.
-        persist_s: an alarm that lasts this long at the reached target backs off one more step.
-        ceiling_factor: the section's ceiling is the override at the alarm's start × this.
-        hold_after_s: no valid signal this long → hold.
-        signal_timeout_s: no valid signal this long → safe override.
-        plausible_max: largest plausible |sample| (None: 10 × the plan's force limit).
-        stuck_samples: a chunk of at least this many identical samples is a stuck sensor.
-        heartbeat_s: log interval while nothing changes.
-        use_transient_model: tell the detector the expected mean force (see planner.supervisor.detector).
-    """
-
-    alpha_f: float = 6e-5
-    wavelet: str = DEFAULT_WAVELET
-    chatter_hz: float = 11.0
-    floor_pct: float = 20.0
-    safe_pct: float | None = None
-    backoff_pct_s: float = 400.0
-    recover_pct_s: float = 20.0
-    accel_pct_s2: float = 4000.0
-    jerk_pct_s3: float = 100_000.0
-    gain_pct: float = 30.0
-    max_step_pct: float = 40.0
-    quiet_s: float = 0.15
-    persist_s: float = 0.25
-    ceiling_factor: float = 0.95
-    hold_after_s: float = 0.03
-    signal_timeout_s: float = 0.3
-    plausible_max: float | None = None
-    stuck_samples: int = 64
-    heartbeat_s: float = 0.1
-    use_transient_model: bool = True
-
-
-@dataclass(frozen=True)
-class StepResult:
-    """What one step decided.
-
-    Attributes:
-        status: what the step is doing.
-        override: override to command now [percent].
-        target: where the override trajectory is heading [percent].
-        band: largest |detail| of this step, or None.
-        ucl: control limit in force (UCL + transient allowance).
-        alarm: the band was over the limit.
-        section: current section index.
-        s_m: dead-reckoned arc length [m].
-        reason: the decision in words.
-        direction: −1/0/+1 stabilising direction used on an alarm (0 otherwise or none).
-    """
-
-    status: StepStatus
-    override: float
-    target: float
-    band: float | None
-    ucl: float
-    alarm: bool
-    section: int
-    s_m: float
-    reason: str
-    direction: int = 0
-
-
-@dataclass
-class Episode:
-    """One chatter episode: from the first alarm to the band quiet again.
-
-    Attributes:
-        start_s: supervisor time of the first alarm [s]; ``signal_start_s`` its band value's stamp.
-        end_s: time the band was quiet for ``quiet_s`` again [s] (None while open).
-        last_alarm_s: time of the last alarm step [s].
-        override_start, override_min: override at the start and lowest commanded [percent].
-        section: section of the first alarm.
-        direction: stabilising direction used at the start (0: backed off towards the floor).
-    """
-
-    start_s: float
-    signal_start_s: float | None
-    section: int
-    override_start: float
-    direction: int
-    override_min: float = math.inf
-    last_alarm_s: float = 0.0
-    end_s: float | None = None
-    base: float = 100.0
-    reached_s: float | None = None
 
 
 def _planned_feed(sec: PlanSection | None) -> float:
@@ -214,6 +78,7 @@ class _Track:
     char: Characteristic | None = None
     cap: float = 100.0
     ceiling: float = 100.0
+    raise_failed: bool = False   # a raise was reversed here: this section backs off
 
 
 class Supervisor:
@@ -248,8 +113,19 @@ class Supervisor:
                               else math.inf)
         self.safe_pct = cfg.safe_pct if cfg.safe_pct is not None else cfg.floor_pct
         self.episodes: list[Episode] = []
+        self.alarms: list[OperatorAlarm] = []
         self.counts = {"steps": 0, "implausible_chunks": 0, "implausible_samples": 0, "gaps": 0,
-                       "errors": 0, "alarms": 0, "no_direction": 0, "restarts": 0}
+                       "errors": 0, "alarms": 0, "no_direction": 0, "restarts": 0,
+                       "reversals": 0, "escalations": 0, "link_faults": 0}
+        #: how long the band lags the chatter amplitude [s] (the band filter's delay)
+        self.band_delay_s = self.detector.delay_s
+        #: the time a move needs to show in the band, and the time it is judged over [s]
+        self.decision_period_s = self.band_delay_s + 1.0 / self.level.chatter_hz
+        self._env_window_s = 0.5 / self.level.chatter_hz
+        self._env: list[tuple[float, float]] = []
+        self._fault: LinkFault | None = None
+        self._applied: float | None = None
+        self._escalated_s: float | None = None   # chatter escalated: the floor holds till quiet
         self._learn_s = learn_s
         self._learn_sum = 0.0
         self._learn_n = 0
@@ -292,6 +168,7 @@ class Supervisor:
             f_lim = feed_limit_for_force(tr.char, self.force_max_N)
             tr.cap = min(100.0, 100.0 * f_lim / planned)
         tr.ceiling = 100.0
+        tr.raise_failed = False
 
     def _limits(self) -> tuple[float, float]:
         cap = self._track.cap
@@ -328,24 +205,55 @@ class Supervisor:
             self._pos, self._vel, self._acc = self._target, 0.0, 0.0
 
     def _valid(self, chunk: SignalChunk) -> tuple[bool, str]:
-        t, v = chunk.t_s, chunk.values
-        if not (isinstance(t, np.ndarray) and isinstance(v, np.ndarray)):
-            return False, "chunk without sample arrays"
-        if t.shape != v.shape or t.ndim != 1:
-            return False, "chunk arrays of different shapes"
-        if not (np.issubdtype(t.dtype, np.number) and np.issubdtype(v.dtype, np.number)):
-            return False, f"samples of type {v.dtype}, not numbers"
-        if not (np.all(np.isfinite(v)) and np.all(np.isfinite(t))):
-            return False, "non-finite samples"
-        if np.max(np.abs(v)) > self.plausible_max:
-            return False, f"|sample| {np.max(np.abs(v)):.4g} over the plausible {self.plausible_max:.4g}"
-        if v.size >= self.cfg.stuck_samples and np.all(v == v[0]):
-            return False, f"{v.size} identical samples (stuck sensor)"
-        if v.size > 1 and not np.all(np.diff(t) > 0):
-            return False, "time stamps not increasing"
-        if self._last_t is not None and self._last_t - RESTART_BACK_S <= t[0] <= self._last_t:
-            return False, "time stamps before the previous chunk's"
-        return True, ""
+        why = chunk_problem(chunk, self.plausible_max, self.cfg.stuck_samples, self._last_t)
+        return not why, why
+
+    # -- what the loop tells the supervisor ----------------------------------------------------
+    def link_fault(self, now: float, fault: LinkFault) -> None:
+        """The controller does not apply the override (from the loop's
+        :class:`~planner.supervisor.link_watch.LinkWatch`): count it and log it with its reason;
+        the first one raises an operator alarm, ends an open episode as escalated and makes every
+        later step hold the override (never above what was commanded nor above what the controller
+        applies). Never raises."""
+        try:
+            self.counts["link_faults"] += 1
+            tr = self._track
+            first = self._fault is None
+            if first:
+                self._fault = fault
+                if self._open_episode() is not None:
+                    self._end_episode(now, "escalated", "the controller does not apply the "
+                                                         f"override ({fault.reason})")
+            applied = "none" if fault.applied is None else f"{fault.applied:.0f} %"
+            reason = (f"controller link fault ({fault.kind}): {fault.reason}; commanded "
+                      f"{fault.commanded if fault.commanded is not None else 'nothing'} %, the "
+                      f"controller applies {applied}")
+            if first:
+                reason += ": the supervisor cannot act; holding the override"
+                self._raise_alarm(now, f"link_{fault.kind}", reason)
+            else:
+                self.log.write({"t_s": now, "section": tr.section + 1, "band": self._last_band,
+                                "ucl": self.detector.ucl, "override": self._pos,
+                                "status": StepStatus.HOLD, "event": "link_fault",
+                                "reason": reason})
+        except Exception:  # noqa: BLE001 - the loop must go on
+            self.counts["errors"] += 1
+
+    def finish(self, now: float) -> None:
+        """The run ends: an episode still open is escalated (the cut ended chattering, or before
+        the band was quiet long enough to say otherwise). Idempotent; never raises."""
+        try:
+            ep = self._open_episode()
+            if ep is None:
+                return
+            since = now - ep.last_alarm_s
+            why = ("the run ended during the episode, the band over the limit "
+                   f"{since:.3f} s before (not yet quiet for {self.cfg.quiet_s:g} s)")
+            self._end_episode(now, "escalated", why)
+            self._raise_alarm(now, "run_ended_in_episode", f"chatter episode in section "
+                              f"{ep.section_number} not resolved: {why}")
+        except Exception:  # noqa: BLE001
+            self.counts["errors"] += 1
 
     # -- the step ---------------------------------------------------------------------------
     def step(self, now: float, chunk: SignalChunk, applied_override: float | None = None) -> StepResult:
@@ -355,7 +263,7 @@ class Supervisor:
             now: supervisor clock [s] (monotonic).
             chunk: samples that arrived since the last step.
             applied_override: override the controller confirmed [percent] (None: assume the one
-                commanded) — used for dead reckoning and the expected mean force.
+                commanded) — what every decision is taken on.
         """
         try:
             return self._step(now, chunk, applied_override)
@@ -368,6 +276,23 @@ class Supervisor:
             self._emit(now, res, force=True)
             return res
 
+    def _open_episode(self) -> Episode | None:
+        return self.episodes[-1] if self.episodes and self.episodes[-1].end_s is None else None
+
+    def _envelope(self, now: float, band: float | None) -> float | None:
+        """The band's envelope: its largest value over the last half chatter period (the band of
+        a sinusoid peaks twice a period), or None when no band value is that recent."""
+        env = self._env
+        if band is not None:
+            env.append((now, band))
+        horizon = now - self._env_window_s
+        k = 0
+        while k < len(env) and env[k][0] < horizon:
+            k += 1
+        if k:
+            del env[:k]
+        return max(b for _, b in env) if env else None
+
     def _step(self, now: float, chunk: SignalChunk, applied: float | None) -> StepResult:
         cfg = self.cfg
         self.counts["steps"] += 1
@@ -377,6 +302,7 @@ class Supervisor:
         if self._last_signal_now is None:
             self._last_signal_now = now
         ov_applied = applied if applied is not None and math.isfinite(applied) else self._pos
+        self._applied = ov_applied
         tr.s_m += _planned_feed(tr.sec) * ov_applied / 100.0 * dt
         prev_section = tr.section
         self._enter_section(tr.s_m)
@@ -389,6 +315,7 @@ class Supervisor:
         ucl = self.detector.ucl
         alarm = False
         direction = 0
+        quiet_hold = False   # a hold logged by heartbeat (it may last the rest of the run)
 
         # ---- signal ----
         valid = False
@@ -416,8 +343,25 @@ class Supervisor:
         expected = None
         if cfg.use_transient_model and tr.char is not None:
             expected = force_at(tr.char, planned * ov_applied / 100.0)
+        out = None
+        if valid and self.detector.sigma is not None:
+            out = self.detector.update(chunk.t_s, chunk.values, expected)
+            band, ucl, alarm = out.band, out.ucl, out.alarm
+            if alarm:
+                self.counts["alarms"] += 1
+        env = self._envelope(now, band) if out is not None else None
+        ep = self._open_episode()
 
-        if missing > cfg.signal_timeout_s:
+        if self._fault is not None:
+            # cannot act: hold, never above what is commanded nor above what is applied (a
+            # controller that starts to follow again must not jump upwards)
+            status, target, quiet_hold = StepStatus.HOLD, min(self._pos, ov_applied), True
+            reason = (reason + "; " if reason else "") + (
+                f"the controller does not apply the override ({self._fault.kind} at "
+                f"{self._fault.t_s:.3f} s): holding {min(max(target, floor), cap):.1f} % (the "
+                f"controller applies {ov_applied:.1f} %), operator alarm raised"
+                + (f"; band {band:.4g} over the limit {ucl:.4g}" if alarm else ""))
+        elif missing > cfg.signal_timeout_s:
             status, target = StepStatus.SAFE, min(self.safe_pct, cap)
             reason = (reason + "; " if reason else "") + (
                 f"no valid signal for {missing:.3f} s: safe override {target:.1f} %")
@@ -442,25 +386,53 @@ class Supervisor:
                 else:
                     reason = (f"only {self._learn_n} band values after {self._learn_s:.2f} s: "
                               "still learning (the stable window is shorter than the band filter)")
-        elif valid:
-            out = self.detector.update(chunk.t_s, chunk.values, expected)
-            band, ucl, alarm = out.band, out.ucl, out.alarm
+        elif out is not None:
+            judged = None
+            if ep is not None and env is not None:
+                judged = judge(ep, now, env, alarm, ov_applied, floor, self.band_delay_s,
+                               self.decision_period_s)
             if band is None and not self.detector.monitor.ready:
                 status, target = StepStatus.WARMUP, self._pos
                 reason = reason or "band filter warming up: override held"
+            elif self._escalated_s is not None and (
+                    alarm or now - (self._last_alarm or now) < cfg.quiet_s):
+                if alarm:
+                    self._last_alarm = now
+                status, target, quiet_hold = StepStatus.HOLD, floor, True
+                reason = (f"chatter escalated at {self._escalated_s:.3f} s (operator alarm): "
+                          f"holding the floor {floor:.1f} % until the band is quiet for "
+                          f"{cfg.quiet_s:g} s"
+                          + (f"; band {band:.4g} over the limit {ucl:.4g}" if alarm else ""))
+            elif judged is not None and judged[0] == "escalate":
+                status, target = StepStatus.HOLD, floor
+                reason = f"{judged[1]}: escalated, operator alarm; holding the floor"
+                self._escalate(now, ep, judged[1])
+            elif judged is not None and judged[0] == "reverse":
+                status = StepStatus.ALARM
+                worst = max(env, ep.peak)
+                step = min(cfg.max_step_pct, cfg.gain_pct * max(0.0, (worst - ucl) / ucl))
+                target = min(self._target, ov_applied - step)
+                self._reverse(now, ep, ov_applied)
+                reason = (f"{judged[1]}: reversing, backing off {step:.1f} % towards the floor "
+                          "(this section does not raise again)")
             elif alarm:
                 status = StepStatus.ALARM
-                self.counts["alarms"] += 1
-                target, direction, why = self._on_alarm(now, out.excess, out.t_s, planned, floor, cap)
+                target, direction, why = self._on_alarm(now, out.excess, out.t_s, planned, floor,
+                                                        cap, ov_applied, env)
                 reason = (f"chatter: band {band:.4g} > limit {ucl:.4g} (excess {out.excess:.2f}); "
                           + why)
             else:
+                if self._escalated_s is not None:   # quiet after an escalation: act again
+                    self._escalated_s = None
+                    reason = "band quiet after the escalation: the supervisor acts again"
                 since = math.inf if self._last_alarm is None else now - self._last_alarm
                 if since < cfg.quiet_s:
                     status, target = StepStatus.QUIET, self._target
-                    reason = f"band under the limit for {since:.3f} s: waiting {cfg.quiet_s} s"
+                    reason = f"band under the limit for {since:.3f} s: waiting {cfg.quiet_s:g} s"
                 else:
-                    self._close_episode(now)
+                    if ep is not None:
+                        self._end_episode(now, "resolved", f"band under the limit for "
+                                                           f"{cfg.quiet_s:g} s")
                     goal = min(cap, tr.ceiling)
                     if self._pos < goal - 0.05:
                         status, target = StepStatus.RECOVER, goal
@@ -469,15 +441,27 @@ class Supervisor:
                     else:
                         status, target = StepStatus.OK, goal
                         reason = reason or "band quiet"
+        else:   # no valid samples this cycle, not yet long enough to hold: nothing changes
+            reason = reason or (f"no new samples for {missing:.3f} s (hold after "
+                                f"{cfg.hold_after_s:g} s): {status.value} goes on")
         if prev_section != tr.section:
-            reason = (f"section {tr.section} (planned {planned * 1e3:.3g} mm/s, cap {cap:.1f} %); "
+            number = tr.sec.number if tr.sec is not None else tr.section + 1
+            reason = (f"section {number} (planned {planned * 1e3:.3g} mm/s, cap {cap:.1f} %); "
                       + reason)
         target = min(max(target, floor), cap)
-        open_ep = self.episodes[-1] if self.episodes and self.episodes[-1].end_s is None else None
-        fast_up = (open_ep is not None and open_ep.direction > 0
+        open_ep = self._open_episode()
+        if open_ep is not None:
+            open_ep.override_min = min(open_ep.override_min, ov_applied)
+            open_ep.override_max = max(open_ep.override_max, ov_applied)
+            open_ep.target_min = min(open_ep.target_min, target)
+        fast_up = (open_ep is not None and open_ep.raising
                    and status in (StepStatus.ALARM, StepStatus.QUIET))
         self._advance(now)  # the state now, on the trajectory in force
-        if abs(target - self._target) > TARGET_EPS_PCT or fast_up != self._fast_up:
+        if status == StepStatus.HOLD and quiet_hold and abs(self._pos - target) > TARGET_EPS_PCT:
+            # cannot act: the override is re-based on what the controller applies, no trajectory
+            self._pos, self._vel, self._acc = target, 0.0, 0.0
+            self._plan_traj(now, target, False)
+        elif abs(target - self._target) > TARGET_EPS_PCT or fast_up != self._fast_up:
             self._plan_traj(now, target, fast_up)
         override = min(max(self._pos, floor), cap)
         if override != self._pos:
@@ -488,59 +472,121 @@ class Supervisor:
                          direction)
         changed = status != self._status or prev_section != tr.section
         self._status = status
-        self._emit(now, res, force=changed or alarm or status in (StepStatus.HOLD, StepStatus.SAFE))
+        self._last_band = band if band is not None else self._last_band
+        held = status == StepStatus.SAFE or (status == StepStatus.HOLD and not quiet_hold)
+        self._emit(now, res, force=changed or held or (alarm and not quiet_hold))
         return res
 
     def _on_alarm(self, now: float, excess: float, t_band: float | None, planned: float,
-                  floor: float, cap: float) -> tuple[float, int, str]:
+                  floor: float, cap: float, applied: float, env: float | None) -> tuple[float, int, str]:
         cfg = self.cfg
         tr = self._track
-        ep = self.episodes[-1] if self.episodes and self.episodes[-1].end_s is None else None
+        ep = self._open_episode()
         step = min(cfg.max_step_pct, cfg.gain_pct * max(excess, 0.0))
         direction, rel = (0, 0.0)
         if tr.char is not None and planned > 0:
-            direction, rel = stabilising_direction(tr.char, planned * self._pos / 100.0)
+            direction, rel = stabilising_direction(tr.char, planned * applied / 100.0)
         if ep is None:
-            ep = Episode(now, t_band, tr.section, self._pos, direction, base=self._pos)
+            ep = Episode(now, t_band, tr.section, applied, direction, base=applied)
+            ep.peak = env or 0.0
             self.episodes.append(ep)
-            tr.ceiling = min(tr.ceiling, self._pos * cfg.ceiling_factor)
+            if direction > 0 and tr.raise_failed:
+                ep.reversed_s = now   # this section's raise failed before: back off at once
+            if not ep.raising:        # it chatters here and the way out is down: a ceiling
+                tr.ceiling = min(tr.ceiling, applied * cfg.ceiling_factor)
         ep.last_alarm_s = now
         self._last_alarm = now
         # the amount is taken from the episode's base override, not from the moving one: the band
         # lags the feed by the filter's delay, so a per-step decrement would run to the floor.
-        # If the alarm outlasts `persist_s` at the reached target, the base moves on.
-        if abs(self._pos - self._target) > 0.5:
+        # If the alarm outlasts `persist_s` at the reached target and the band is not falling
+        # (or it outlasts ESCALATE_PERIODS decision periods there), the base moves on.
+        if abs(applied - self._target) > AT_FLOOR_TOL_PCT:
             ep.reached_s = None
         elif ep.reached_s is None:
-            ep.reached_s = now
-        elif now - ep.reached_s > cfg.persist_s:
-            ep.base = self._pos
-            ep.reached_s = None
-        if direction > 0 and self._pos < cap - 0.05:
+            ep.reached_s, ep.reached_peak = now, env or 0.0
+        else:
+            ep.reached_peak = max(ep.reached_peak, env or 0.0)
+            waited = now - ep.reached_s
+            falling = env is not None and env < NOT_FALLING_RATIO * ep.reached_peak
+            if (waited > cfg.persist_s and not falling) or (
+                    waited > ESCALATE_PERIODS * self.decision_period_s):
+                ep.base = applied
+                ep.reached_s = None
+        if ep.raising and direction > 0 and applied < cap - AT_FLOOR_TOL_PCT:
             target = max(self._target, ep.base + step)
             why = f"raising the feed by {step:.1f} % (d margin/d feed > 0, relative slope {rel:.3g})"
+        elif ep.raising and ep.base < cap - AT_FLOOR_TOL_PCT:
+            # raised as far as it goes (the cap), or to where the characteristic stops saying
+            # faster: stop there; the decision period says whether it worked
+            target = min(self._target, cap if direction > 0 else max(applied, ep.base))
+            why = ((f"raised to the cap {cap:.1f} %" if direction > 0 else
+                    f"raised to where the characteristic stops saying faster (relative slope "
+                    f"{rel:.3g})") + f": holding {target:.1f} % while the raise is judged "
+                   f"({self.decision_period_s:.3f} s after it)")
+        elif ep.raising:   # the episode began at the cap: no room to raise
+            self._reverse(now, ep, applied)
+            target = min(self._target, ep.base - step)
+            why = ((f"faster would stabilise but the override is at its cap {cap:.1f} %"
+                    if direction > 0 else "the characteristic no longer says faster here "
+                    f"(relative slope {rel:.3g})")
+                   + f": reversing, backing off {step:.1f} % towards the floor")
         elif direction < 0:
             target = min(self._target, ep.base - step)
             why = f"lowering the feed by {step:.1f} % (d margin/d feed < 0, relative slope {rel:.3g})"
         else:
-            self.counts["no_direction"] += 1
             target = min(self._target, ep.base - step)
-            why = ("the characteristic offers no stabilising feed direction (relative slope "
-                   f"{rel:.3g}): backing off {step:.1f} % towards the floor" if direction == 0 else
-                   "faster would stabilise but the override is at its cap: backing off "
-                   f"{step:.1f} % towards the floor")
+            if direction > 0:
+                why = (f"raising did not stabilise this section (reversed): backing off {step:.1f} "
+                       "% towards the floor")
+            elif ep.direction == 0:
+                self.counts["no_direction"] += 1
+                why = ("the characteristic offers no stabilising feed direction (relative slope "
+                       f"{rel:.3g}): backing off {step:.1f} % towards the floor")
+            else:
+                why = (f"the episode backs off (no stabilising direction at the applied feed, "
+                       f"relative slope {rel:.3g}): {step:.1f} % towards the floor")
         target = min(max(target, floor), cap)
-        ep.override_min = min(ep.override_min, target)
         return target, direction, why
 
-    def _close_episode(self, now: float) -> None:
-        if self.episodes and self.episodes[-1].end_s is None:
-            ep = self.episodes[-1]
-            ep.end_s = now
-            if ep.section == self._track.section and math.isfinite(ep.override_min):
-                # the boundary lies between where it chattered and where it went quiet: bisect
-                mid = ep.override_min + 0.5 * (ep.override_start - ep.override_min)
-                self._track.ceiling = min(self._track.ceiling, mid)
+    def _reverse(self, now: float, ep: Episode, applied: float) -> None:
+        """End a raise: back off from the applied override, never raise again in this section,
+        and the feed the raise reached (it chatters there) makes the section's ceiling."""
+        tr = self._track
+        ep.reversed_s = now
+        ep.base = applied
+        ep.reached_s = None
+        tr.raise_failed = True
+        tr.ceiling = min(tr.ceiling, max(applied, ep.override_max) * self.cfg.ceiling_factor)
+        self.counts["reversals"] += 1
+
+    def _end_episode(self, now: float, outcome: str, why: str) -> None:
+        ep = self._open_episode()
+        if ep is None:
+            return
+        ep.end_s = now
+        ep.outcome, ep.outcome_reason = outcome, why
+        if (outcome == "resolved" and not ep.raising and ep.section == self._track.section
+                and math.isfinite(ep.override_min)):
+            # the boundary lies between where it chattered (the start, or the highest feed a
+            # reversed raise reached) and where it went quiet: bisect
+            top = ep.override_start if ep.reversed_s is None else max(ep.override_max,
+                                                                      ep.override_start)
+            mid = ep.override_min + 0.5 * (top - ep.override_min)
+            self._track.ceiling = min(self._track.ceiling, mid)
+
+    def _escalate(self, now: float, ep: Episode, why: str) -> None:
+        self._end_episode(now, "escalated", why)
+        self._escalated_s = now
+        self.counts["escalations"] += 1
+        self._raise_alarm(now, "chatter_escalated", f"section {ep.section_number}: {why}")
+
+    def _raise_alarm(self, now: float, kind: str, reason: str) -> None:
+        alarm = OperatorAlarm(now, kind, self._track.section + 1, reason)
+        self.alarms.append(alarm)
+        self.log.write({"t_s": now, "section": alarm.section, "band": self._last_band,
+                        "ucl": self.detector.ucl, "override": self._pos,
+                        "applied": self._applied, "status": StepStatus.HOLD,
+                        "event": "operator_alarm", "alarm": kind, "reason": reason})
 
     def _emit(self, now: float, res: StepResult, force: bool) -> None:
         if not force and now - self._last_log < self.cfg.heartbeat_s and abs(
@@ -548,7 +594,7 @@ class Supervisor:
             return
         self._last_log = now
         self._logged_target = res.target
-        self.log.write({"t_s": now, "section": res.section, "s_m": res.s_m, "band": res.band,
-                        "ucl": res.ucl, "override": res.override, "target": res.target,
-                        "status": res.status, "alarm": res.alarm, "direction": res.direction,
-                        "reason": res.reason})
+        self.log.write({"t_s": now, "section": res.section_number, "s_m": res.s_m, "band": res.band,
+                        "ucl": res.ucl, "override": res.override, "applied": self._applied,
+                        "target": res.target, "status": res.status, "alarm": res.alarm,
+                        "direction": res.direction, "reason": res.reason})

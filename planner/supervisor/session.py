@@ -5,7 +5,8 @@ them from their names, as ``cctmill supervise`` and the demo do, and closes them
 
     plan = load_plan("out/")
     summary = supervise(plan, signal="sim", robot="sim", config=SessionConfig(duration=6.0))
-    summary.episodes                 # every chatter episode with its override and timing
+    summary.episodes                 # every chatter episode: the applied overrides, its outcome, timing
+    summary.alarms                   # operator alarms (`cctmill supervise` exits 3 when any)
 
 Names of a signal: a CSV/NPY file (replayed in real time), ``udp://HOST:PORT`` (a sample stream to
 bind, :mod:`robot_io.signals.udp`) or ``sim`` (the simulated cut, :mod:`planner.supervisor.sim_cut`,
@@ -30,6 +31,7 @@ import numpy as np
 
 from models.errors import InputError
 from planner.plan_file import Plan
+from planner.supervisor.episode import OperatorAlarm
 from planner.supervisor.event_log import EventLog
 from planner.supervisor.loop import LoopReport, VirtualClock, run_loop
 from planner.supervisor.metrics import episode_metrics
@@ -74,6 +76,8 @@ class SessionConfig:
         signal_column: the CSV column to replay (None: the first non-time column).
         sim_protocol: protocol of the simulated controller, ``kvp`` or ``rsi``.
         fast: a simulated signal with a real link runs on a virtual clock (no sleeping).
+        rsi_config: the controller's RSI ETHERNET configuration file (SENTYPE, correction element,
+            override tags; :mod:`robot_io.links.rsi_config`) for an RSI link; None: the defaults.
     """
 
     supervisor: SupervisorConfig = field(default_factory=SupervisorConfig)
@@ -88,6 +92,7 @@ class SessionConfig:
     signal_column: str | None = None
     sim_protocol: str = "kvp"
     fast: bool = False
+    rsi_config: str | None = None
 
     def check(self) -> None:
         """Raises InputError naming the field that is out of range."""
@@ -115,9 +120,14 @@ class SessionSummary:
         loop: the loop's report (None when interrupted before it returned).
         cycle: supervisor cycle [s].
         link_stats, source_stats: the link's and the source's counters.
-        episodes: every chatter episode as the JSON gives it (start, section, direction, overrides,
-            end; with the simulated truth also detection delay, onset to alarm, settling and quiet
-            times, in ms as the names say).
+        episodes: every chatter episode as the JSON gives it (start, section — its number, from
+            1, as in plan.json and the KRL program —, direction, the overrides the controller
+            applied at the start and at the lowest, the lowest target, when a raise was reversed,
+            end, outcome ``resolved``/``escalated`` and why; with the simulated truth also
+            detection delay, onset to alarm, settling and quiet times, in ms as the names say).
+        alarms: every operator alarm (time on the loop's clock and after the start [s], kind,
+            section, reason): the run needs the operator (``cctmill supervise`` then exits with
+            status 3).
         plot: the plot written, if any.
     """
 
@@ -134,6 +144,7 @@ class SessionSummary:
     link_stats: dict[str, Any]
     source_stats: dict[str, Any]
     episodes: list[dict[str, Any]]
+    alarms: list[dict[str, Any]] = field(default_factory=list)
     plot: str | None = None
 
     def as_json(self) -> dict[str, Any]:
@@ -146,16 +157,20 @@ class SessionSummary:
             out.update({
                 "steps": rep.steps, "duration_s": rep.duration_s, "status_counts": rep.status_counts,
                 "final_override": rep.last.override if rep.last else None,
+                "final_applied_override": rep.last_applied,
                 "step_latency_ms": {"p50": _ms(float(np.percentile(lat, 50))) if lat.size else None,
                                     "p99": _ms(float(np.percentile(lat, 99))) if lat.size else None,
                                     "max": _ms(float(lat.max())) if lat.size else None,
                                     "cycle": _ms(self.cycle)},
                 "overruns": rep.overruns, "link_writes": rep.link_writes,
                 "link_failures": rep.link_failures, "link_downs": rep.link_downs,
+                "link_refusals": rep.link_refusals, "link_not_followed": rep.link_not_followed,
+                "follow_ms": _ms(rep.follow_s) if math.isfinite(rep.follow_s) else None,
             })
         out["link_stats"] = dict(self.link_stats)
         out["source_stats"] = dict(self.source_stats)
         out["episodes"] = [dict(e) for e in self.episodes]
+        out["alarms"] = [dict(a) for a in self.alarms]
         if self.plot:
             out["plot"] = self.plot
         return out
@@ -187,7 +202,8 @@ def run_session(plan: Plan, source: Any, link: Any, config: SessionConfig, fs_hz
                 scenario: CutScenario | None = None,
                 clock: Callable[[], float] = time.monotonic,
                 sleep: Callable[[float], None] = time.sleep,
-                before_step: Callable[[], None] | None = None) -> SessionSummary:
+                before_step: Callable[[], None] | None = None,
+                on_alarm: Callable[[OperatorAlarm], None] | None = None) -> SessionSummary:
     """Supervise ``plan`` with an open signal ``source`` and robot ``link`` (neither is closed).
 
     Args:
@@ -199,6 +215,8 @@ def run_session(plan: Plan, source: Any, link: Any, config: SessionConfig, fs_hz
         signal, robot: the names the summary gives them.
         cut, scenario: the simulated cut and its scenario, for the episodes' true timing.
         clock, sleep, before_step: the loop's clock (a :class:`VirtualClock` runs without waiting).
+        on_alarm: called with every operator alarm as it is raised, inside the loop (return fast):
+            e.g. a stop request the KRL program polls.
     """
     log = EventLog(config.log)
     try:
@@ -210,9 +228,11 @@ def run_session(plan: Plan, source: Any, link: Any, config: SessionConfig, fs_hz
         trace = RunTrace()
         try:
             rep: LoopReport | None = run_loop(sup, source, link, duration, config.cycle, clock=clock,
-                                              sleep=sleep, before_step=before_step, on_step=trace)
+                                              sleep=sleep, before_step=before_step, on_step=trace,
+                                              on_alarm=on_alarm)
         except KeyboardInterrupt:
             rep = None
+            sup.finish(clock())
         log.flush()
     finally:
         log.close()
@@ -239,11 +259,16 @@ def _summary(sup: Supervisor, rep: LoopReport | None, source: Any, link: Any,
         metrics = episode_metrics(sup, cut.truth, ch.chatter_hz,
                                   scenario.onset_s if scenario is not None else None,
                                   cut.start_clock_s)
+    t0 = rep.t_start if rep is not None and math.isfinite(rep.t_start) else 0.0
     episodes = []
     for k, ep in enumerate(sup.episodes):
-        e: dict[str, Any] = {"start_s": ep.start_s, "section": ep.section, "direction": ep.direction,
-                             "override_start": ep.override_start, "override_min": ep.override_min,
-                             "end_s": ep.end_s}
+        e: dict[str, Any] = {"start_s": ep.start_s, "section": ep.section_number,
+                             "direction": ep.direction, "override_start": ep.override_start,
+                             "override_min": ep.override_min, "target_min": ep.target_min,
+                             "reversed_after_ms": (_ms(ep.reversed_s - ep.start_s)
+                                                   if ep.reversed_s is not None else None),
+                             "end_s": ep.end_s, "outcome": ep.outcome,
+                             "outcome_reason": ep.outcome_reason}
         if k < len(metrics):
             m = metrics[k]
             e.update({"detection_delay_ms": _ms(m.detection_delay_s),
@@ -254,7 +279,9 @@ def _summary(sup: Supervisor, rep: LoopReport | None, source: Any, link: Any,
         plan=plan_name(sup.plan), signal=signal, robot=robot, fs_hz=sup.fs_hz, detector=detector,
         counts=dict(sup.counts), log=config.log, log_dropped=sup.log.dropped, loop=rep,
         cycle=config.cycle, link_stats=dict(link.stats.__dict__),
-        source_stats=source.stats.as_dict(), episodes=episodes)
+        source_stats=source.stats.as_dict(), episodes=episodes,
+        alarms=[{"t_s": a.t_s, "after_s": a.t_s - t0, "kind": a.kind, "section": a.section,
+                 "reason": a.reason} for a in sup.alarms])
 
 
 def plan_name(plan: Plan) -> str:
@@ -280,13 +307,13 @@ class _Closer:
 
 
 def _open_link(robot: str, config: SessionConfig, closers: list) -> Any:
-    cycle_ms = int(round(config.cycle * 1000))
+    # the RSI server learns the controller's IPOC step from the telegrams: the loop period is not it
     if robot == "sim":
         if config.sim_protocol == "rsi":
             from robot_io.links.rsi import RsiServer
             from robot_io.links.rsi_sim import RsiSimController
 
-            server = RsiServer(cycle_ms=cycle_ms)
+            server = RsiServer(config=config.rsi_config)
             closers.append(server)
             ctl = RsiSimController(server.address, cycle_s=config.cycle).start()
             closers.append(_Closer(ctl.stop))
@@ -311,7 +338,7 @@ def _open_link(robot: str, config: SessionConfig, closers: list) -> Any:
         from robot_io.links.rsi_process import RsiProcessServer
 
         host, port = _endpoint(robot, "rsi", "robot")
-        server = RsiProcessServer(host, port, cycle_ms=cycle_ms)
+        server = RsiProcessServer(host, port, config=config.rsi_config)
         closers.append(server)
         return server
     raise InputError("robot", f"{robot!r}: use sim, kvp://HOST:PORT or rsi://BIND_HOST:PORT")

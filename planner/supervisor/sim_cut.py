@@ -75,7 +75,8 @@ class CutTruth:
     """What really happened, one row per generated block (for tests and benchmarks).
 
     Lists of equal length: block end time [s], arc length [m], actual feed [m/s], chatter amplitude
-    [N], true margin [N/m], section index, applied override [percent].
+    [N], true margin [N/m], section (position in ``plan.sections``, from 0), applied override
+    [percent].
     """
 
     t_s: list[float] = field(default_factory=list)

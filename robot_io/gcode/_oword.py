@@ -10,7 +10,8 @@
   ``repeat [n]``/``endrepeat``, ``break`` and ``continue``. Conditions are expressions
   (:mod:`robot_io.gcode._expr`), non-zero is true. A loop body runs at most
   :data:`MAX_LOOP_ITERATIONS` times per entry, calls nest at most :data:`MAX_CALL_DEPTH` deep,
-  and a reading runs at most :data:`MAX_FLOW_STEPS` loop iterations and calls in all.
+  and a reading runs at most :data:`MAX_FLOW_STEPS` loop iterations and calls and reads at most
+  :data:`MAX_FLOW_LINES` lines again through them, in all.
 * Refused in strict mode, skipped with a counted warning ``o_word`` saying what the skipping may
   change in lenient mode: a call of a subroutine not in the file (LinuxCNC would look for
   ``o100.ngc``), a construct without its closing line, a loop over its limit, a bare O-number
@@ -35,7 +36,8 @@ from robot_io.options import fix
 if TYPE_CHECKING:
     from robot_io.gcode._interp import _Run
 
-__all__ = ["KEYWORDS", "MAX_CALL_DEPTH", "MAX_FLOW_STEPS", "MAX_LOOP_ITERATIONS", "Flow",
+__all__ = ["KEYWORDS", "MAX_CALL_DEPTH", "MAX_FLOW_LINES", "MAX_FLOW_STEPS", "MAX_LOOP_ITERATIONS",
+           "Flow",
            "Jump", "fanuc_subprogram", "flow", "keyword_at", "label_at", "program_number"]
 
 #: The LinuxCNC O-word keywords, longest first where one starts another.
@@ -49,6 +51,12 @@ MAX_CALL_DEPTH = 100
 #: Most loop iterations and calls of one reading in all (nested loops multiply): about ten
 #: seconds of reading and a GB of moves at most.
 MAX_FLOW_STEPS = 1_000_000
+#: Most lines one reading reads again through loop rounds and calls (each round or call counts
+#: the lines of its body) [lines]: an O-word line costs the interpreter about 20 µs, so this is
+#: about a second of reading. The fuzzing found a 717-byte program whose endless while loop read
+#: 400,000 lines in 8 s before the loop limit stopped it. A program whose loops really expand to
+#: more is one to post from CAM without O-word loops.
+MAX_FLOW_LINES = 50_000
 #: Most arguments of a call (LinuxCNC ``INTERP_SUB_PARAMS``, the local ``#1``–``#30``).
 _MAX_ARGS = P.LOCAL_NUMBERED
 #: An O-line: optional block delete and line number, then O and a label and a keyword.
@@ -106,6 +114,7 @@ class Flow:
         loops: (call depth, label) → [kind, line index of its head, iterations, repeats left].
         arriving: (call depth, label) of the if whose elseif/else/endif is jumped to.
         steps: loop iterations and calls so far.
+        reread: lines read again by those iterations and calls so far (their bodies).
     """
 
     def __init__(self, program: list[str]) -> None:
@@ -119,6 +128,7 @@ class Flow:
         self.loops: dict[tuple[int, str], list] = {}
         self.arriving: tuple[int, str] | None = None
         self.steps = 0
+        self.reread = 0
 
     def next(self, label: str, after: int, keywords: tuple[str, ...]) -> int | None:
         """Index of the first O-line of ``label`` after line ``after`` with one of
@@ -239,7 +249,8 @@ def flow(run: _Run, label: str, keyword: str, col: int, u: str, end: int) -> Non
             _refuse(run, col, shown, f"calls nest deeper than {MAX_CALL_DEPTH} (runaway "
                     "recursion?)", "the call is skipped")
             return
-        if not _step(run, f, col, shown):
+        body = f.next(label, head, ("ENDSUB",))
+        if not _step(run, f, col, shown, 1 if body is None else body - head):
             return
         f.calls.append((label, i + 1, run.params.enter(args)))
         raise Jump(head + 1)
@@ -285,12 +296,17 @@ def _if(run: _Run, f: Flow, key: tuple, keyword: str, col: int, u: str, end: int
     raise Jump(stop)
 
 
-def _step(run: _Run, f: Flow, col: int, shown: str) -> bool:
+def _step(run: _Run, f: Flow, col: int, shown: str, body: int) -> bool:
+    """Count one more loop round or call, whose body is ``body`` lines."""
     f.steps += 1
-    if f.steps <= MAX_FLOW_STEPS:
+    f.reread += max(body, 1)
+    if f.steps <= MAX_FLOW_STEPS and f.reread <= MAX_FLOW_LINES:
         return True
-    _refuse(run, col, shown, f"the program runs more than {MAX_FLOW_STEPS:,} loop iterations "
-            "and calls in all", "the rest of the program is not read")
+    what = (f"runs more than {MAX_FLOW_STEPS:,} loop iterations and calls in all"
+            if f.steps > MAX_FLOW_STEPS else
+            f"reads more than {MAX_FLOW_LINES:,} lines again through its loops and calls (an "
+            "endless loop, or a program to post from CAM without O-word loops)")
+    _refuse(run, col, shown, f"the program {what}", "the rest of the program is not read")
     raise Jump(len(run.lines))
 
 
@@ -321,7 +337,7 @@ def _loop(run: _Run, f: Flow, key: tuple, keyword: str, col: int, u: str, end: i
         if _condition(run, u, end) == 0.0:   # the end of a do loop
             del f.loops[key]
             return
-        if _again(run, f, key, loop, col, shown, i + 1):
+        if _again(run, f, key, loop, col, shown, i + 1, i - loop[1]):
             raise Jump(loop[1] + 1)
         return
     if keyword == "WHILE":
@@ -336,7 +352,7 @@ def _loop(run: _Run, f: Flow, key: tuple, keyword: str, col: int, u: str, end: i
         if loop is None or loop[1] != i:
             f.loops[key] = ["while", i, 1, 0]
         else:
-            _again(run, f, key, loop, col, shown, stop + 1)
+            _again(run, f, key, loop, col, shown, stop + 1, stop - i)
         return
     if loop is None:
         _refuse(run, col, shown, f"not inside an o{label} loop", "the line is ignored")
@@ -349,7 +365,7 @@ def _loop(run: _Run, f: Flow, key: tuple, keyword: str, col: int, u: str, end: i
             del f.loops[key]
             return
         loop[3] -= 1
-        if _again(run, f, key, loop, col, shown, i + 1):
+        if _again(run, f, key, loop, col, shown, i + 1, i - head):
             raise Jump(head + 1)
         return
     # BREAK / CONTINUE: to the loop's end or its test
@@ -364,8 +380,10 @@ def _loop(run: _Run, f: Flow, key: tuple, keyword: str, col: int, u: str, end: i
     raise Jump(head if kind == "while" else stop)
 
 
-def _again(run: _Run, f: Flow, key: tuple, loop: list, col: int, shown: str, out: int) -> bool:
-    """Count one more round of ``loop``; over a limit the loop is left (jump to ``out``)."""
+def _again(run: _Run, f: Flow, key: tuple, loop: list, col: int, shown: str, out: int,
+           body: int) -> bool:
+    """Count one more round of ``loop`` (``body`` lines long); over a limit the loop is left
+    (jump to ``out``)."""
     loop[2] += 1
     if loop[2] > MAX_LOOP_ITERATIONS:
         del f.loops[key]
@@ -373,7 +391,7 @@ def _again(run: _Run, f: Flow, key: tuple, loop: list, col: int, shown: str, out
                 "(a condition that never turns false?)", "it is left there and the lines "
                 "after it are read")
         raise Jump(out)
-    return _step(run, f, col, shown)
+    return _step(run, f, col, shown, body)
 
 
 def program_number(run: _Run, value: float, col: int, first: bool) -> None:

@@ -111,7 +111,12 @@ from typing import Any
 
 from models.errors import InputError
 from robot_io.gcode._interp import run_program
-from robot_io.gcode._oword import MAX_CALL_DEPTH, MAX_FLOW_STEPS, MAX_LOOP_ITERATIONS
+from robot_io.gcode._oword import (
+    MAX_CALL_DEPTH,
+    MAX_FLOW_LINES,
+    MAX_FLOW_STEPS,
+    MAX_LOOP_ITERATIONS,
+)
 from robot_io.gcode._words import (
     ARC_MIN_RADIUS,
     INCH,
@@ -142,6 +147,7 @@ __all__ = [
     "MAX_CALL_DEPTH",
     "MAX_CYCLE_REPEAT",
     "MAX_CYCLE_REPEATS",
+    "MAX_FLOW_LINES",
     "MAX_FLOW_STEPS",
     "MAX_LOOP_ITERATIONS",
     "MAX_MOVES",

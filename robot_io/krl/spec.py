@@ -106,8 +106,9 @@ class KrlMove:
         kind: ``"LIN"``, ``"CIRC"`` or ``"PTP"``.
         target: LIN/CIRC: the TCP end pose in ``$BASE`` (X, Y, Z [mm], A, B, C [deg]); PTP: the
             axis values A1..A6 [deg].
-        section: index of the move's section in the ``sections`` list (moves of a section are
-            contiguous and sections come in list order). The move's velocity is its section's
+        section: index of the move's section in the ``sections`` list, from 0 (moves of a
+            section are contiguous and sections come in list order); the program numbers it from
+            1 (the fold ``section 1``, ``NAME_F001``). The move's velocity is its section's
             feed: a change of speed is a new section (with its own ``$VEL.CP`` and ``.dat`` value).
         aux: CIRC only: the auxiliary (via) pose, 6 values like ``target``.
         approx: ``C_DIS`` approximation (LIN/CIRC; PTPs are never approximated).
@@ -167,7 +168,7 @@ def _finite(values: Sequence[float], n: int, what: str, field_: str) -> tuple[fl
         raise KrlError(field_, f"{what} must be {n} numbers, got {len(v)}")
     bad = [x for x in v if not math.isfinite(x) or abs(x) > MAX_COORDINATE]
     if bad:
-        raise KrlError(field_, f"{what} holds {bad[0]!r}: KRL needs finite numbers below "
+        raise KrlError(field_, f"{what} holds {bad[0]:.10g}: KRL needs finite numbers below "
                        f"{MAX_COORDINATE:g} (mm, deg); fix the value upstream")
     return v
 
@@ -202,9 +203,9 @@ def _check_spec(spec: KrlProgramSpec, n_sections: int) -> ControllerLimits:
         raise KrlError("advance", f"$ADVANCE {spec.advance!r} must be 1..5 (approximation "
                        "needs look-ahead; 0 is not allowed for milling)")
     if not (math.isfinite(spec.apo_cdis_mm) and spec.apo_cdis_mm > 0):
-        raise KrlError("apo_cdis_mm", f"$APO.CDIS {spec.apo_cdis_mm!r} mm must be > 0")
+        raise KrlError("apo_cdis_mm", f"$APO.CDIS {spec.apo_cdis_mm:g} mm must be > 0")
     if not (math.isfinite(spec.ptp_velocity_pct) and 0 < spec.ptp_velocity_pct <= 100):
-        raise KrlError("ptp_velocity_pct", f"{spec.ptp_velocity_pct!r} must be in (0, 100] %")
+        raise KrlError("ptp_velocity_pct", f"{spec.ptp_velocity_pct:g} % must be in (0, 100] %")
     if spec.override_hook not in OVERRIDE_HOOKS:
         raise KrlError("override_hook", f"unknown override hook {spec.override_hook!r}; use one "
                        f"of {', '.join(OVERRIDE_HOOKS)}")
@@ -232,10 +233,10 @@ def _check_sections(sections: Sequence[KrlSection], lim: ControllerLimits) -> No
             raise KrlError(f"section {k} feed", f"{f!r} is not a number: $VEL.CP needs a "
                            "finite path speed in m/s; re-plan the job")
         if f <= 0:
-            raise KrlError(f"section {k} feed", f"{f!r} m/s: $VEL.CP must be > 0 (a zero feed "
+            raise KrlError(f"section {k} feed", f"{f:.10g} m/s: $VEL.CP must be > 0 (a zero feed "
                            "never reaches the target); re-plan or drop the section")
-        if f > lim.vel_cp_max:
-            raise KrlError(f"section {k} feed", f"{f!r} m/s is above {lim.label}'s $VEL.CP "
+        if f > lim.vel_cp_max:    # 10 digits: 1 nm/s at a few m/s, without a float's noise
+            raise KrlError(f"section {k} feed", f"{f:.10g} m/s is above {lim.label}'s $VEL.CP "
                            f"maximum {lim.vel_cp_max:g} m/s; $VEL.CP is in m/s (was mm/s "
                            "given?)")
 
@@ -258,16 +259,16 @@ def _check_moves(moves: Sequence[KrlMove], n_sections: int) -> None:
             raise KrlError(where, f"only CIRC takes an auxiliary point, not {m.kind}")
         s = m.section
         if isinstance(s, bool) or not isinstance(s, int) or not 0 <= s < n_sections:
-            raise KrlError(where, f"section {s!r} is not an index into the {n_sections} "
-                           "sections")
-        if s < last:
-            raise KrlError(where, f"section {s} comes after section {last}: the moves of a "
-                           "section must be contiguous and sections in list order")
+            raise KrlError(where, f"its section {s!r} is not an index into the {n_sections} "
+                           f"sections (0..{n_sections - 1})")
+        if s < last:     # the messages number sections from 1, as the folds do
+            raise KrlError(where, f"section {s + 1} comes after section {last + 1}: the moves of "
+                           "a section must be contiguous and sections in list order")
         last = s
         used.add(s)
     empty = sorted(set(range(n_sections)) - used)
     if empty:
-        raise KrlError("sections", f"section {empty[0]} has no moves; drop empty sections")
+        raise KrlError("sections", f"section {empty[0] + 1} has no moves; drop empty sections")
     for i, m in enumerate(moves):
         if m.kind == "CIRC" and (i == 0 or moves[i - 1].kind == "PTP"):
             raise KrlError(f"move {i}", "a CIRC cannot follow a joint PTP (or the BCO PTP): its "

@@ -1,7 +1,10 @@
 """Simulated path speed of a controller under program override, shared by the simulated peers.
 
 The path speed follows ``programmed_speed × override / 100`` with a first-order lag (time constant
-``tau``), evaluated in closed form at any time, so no thread has to integrate it.
+``tau``), evaluated in closed form at any time, so no thread has to integrate it. Setting
+:attr:`SimulatedPathSpeed.ignore_override` makes the controller keep its override whatever it is
+sent (an override channel not wired to ``$OV_PRO``): the supervisor's link-fault tests use it with
+either simulated peer.
 """
 
 from __future__ import annotations
@@ -38,6 +41,8 @@ class SimulatedPathSpeed:
         self._t0 = clock()
         self._v0 = programmed_speed * self._override / 100.0
         self._s0 = 0.0
+        #: when true, :meth:`set_override` changes nothing (a controller that does not apply it)
+        self.ignore_override = False
 
     def _state(self, t: float) -> tuple[float, float]:
         """(speed [m/s], path position [m]) at time ``t``; caller holds the lock."""
@@ -56,7 +61,9 @@ class SimulatedPathSpeed:
             return self._override
 
     def set_override(self, percent: float) -> None:
-        """Apply a new override [percent] from now on."""
+        """Apply a new override [percent] from now on (nothing when :attr:`ignore_override`)."""
+        if self.ignore_override:
+            return
         with self._lock:
             t = self._clock()
             self._v0, self._s0 = self._state(t)

@@ -26,7 +26,8 @@ Contract for the caller (the supervisor loop), all methods thread-safe:
     back.
 ``read_override() -> float | None``
     The last override the controller confirmed [percent] (KVP: read back from ``$OV_PRO``; RSI: the
-    ``<OvPro>`` element of the last ``<Rob>``), or ``None`` when nothing was confirmed yet.
+    ``<OvPro>`` element of the last ``<Rob>``), or ``None`` when nothing was confirmed yet. This,
+    not the value set, is what the controller applies: the supervisor decides on it.
 ``stats -> LinkStats``
     A snapshot (a copy: safe to keep) of the link's counters.
 ``connected -> bool``
@@ -35,7 +36,10 @@ Contract for the caller (the supervisor loop), all methods thread-safe:
     Stop the link's thread and close its socket; idempotent. Links are context managers.
 
 Everything a link does wrong is counted in :class:`LinkStats` and described in ``last_error``;
-nothing is raised into the caller's loop.
+nothing is raised into the caller's loop. An ``ok`` answer of ``set_override`` says the value was
+queued, not that the controller took it: a write the controller refuses is counted in
+``LinkStats.refused`` when the protocol tells (KVP), and the supervisor checks that
+``read_override()`` follows what it commands either way.
 """
 
 from __future__ import annotations
@@ -124,6 +128,10 @@ class LinkStats:
             than the link timeout.
         reconnects: KVP: successful reconnections after the link was lost; RSI: link back after a
             timeout.
+        refused: override writes the controller refused — KVP: a write answered with status 0, or
+            one whose read-back shows another value (a controller that does not apply it). RSI has
+            no per-write answer: whether ``<OvPro>`` follows the command is judged by the
+            supervisor (:mod:`planner.supervisor.link_watch`), so an RSI link leaves this at 0.
         last_error: the latest problem in words ("" when none).
     """
 
@@ -133,6 +141,7 @@ class LinkStats:
     late: int = 0
     timeouts: int = 0
     reconnects: int = 0
+    refused: int = 0
     last_error: str = ""
 
 

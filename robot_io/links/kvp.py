@@ -21,7 +21,9 @@ Layers:
   timeouts, raising :class:`~robot_io.links.base.LinkError`;
 - :class:`KvpClient`: the :class:`~robot_io.links.base.RobotLink` for ``$OV_PRO``. A worker thread owns
   the connection: it writes the latest requested override (latest wins), verifies it with a
-  read-back, polls ``$OV_PRO`` as keep-alive, and reconnects with bounded exponential backoff.
+  read-back, polls ``$OV_PRO`` as keep-alive, and reconnects with bounded exponential backoff. A
+  write answered with status 0, or whose read-back shows another value, is counted in
+  ``stats.refused`` (with the reason in ``last_error``) and not retried until another value is set.
 """
 
 from __future__ import annotations
@@ -465,7 +467,7 @@ class KvpClient:
                 if not reply.ok:
                     with self._wake:
                         self._refused = todo
-                    self._stats.add(error=f"{self.variable} = {todo} refused (status 0)")
+                    self._stats.add(refused=1, error=f"{self.variable} = {todo} refused (status 0)")
             reply = self._timed(conn, FN_READ)
             self._confirm(reply)
             with self._wake:
@@ -474,8 +476,8 @@ class KvpClient:
                         self._written = todo
                     else:
                         self._refused = todo
-                        self._stats.add(error=f"{self.variable} read back {reply.value!r} after "
-                                              f"writing {todo}")
+                        self._stats.add(refused=1, error=f"{self.variable} read back {reply.value!r} "
+                                                         f"after writing {todo}")
                 self._wake.notify_all()
             next_poll = time.monotonic() + self.poll_s
 
@@ -495,7 +497,7 @@ class KvpClient:
                 delay = self.backoff_initial_s
                 self._serve(conn)
             except TimeoutError as e:
-                self._stats.add(timeouts=1, error=f"no reply within {self.timeout} s: {e}")
+                self._stats.add(timeouts=1, error=f"no reply within {self.timeout:g} s: {e}")
             except ProtocolError as e:
                 self._stats.add(malformed=1, error=str(e))
             except (LinkError, OSError) as e:

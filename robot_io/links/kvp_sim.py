@@ -11,6 +11,13 @@ follow the protocol is counted in :attr:`KvpSimServer.stats` ``malformed`` and a
 when its header could be read; a frame longer than :data:`~robot_io.links.kvp.MAX_BODY_BYTES` or cut
 off by the client's close cannot be resynchronised: it is counted and the connection closed.
 
+What the controller does with a write of ``$OV_PRO`` is :attr:`KvpSimServer.override_mode` (settable
+while the server runs, to test the supervisor's link-fault handling): ``"apply"`` (a healthy
+controller), ``"refuse"`` (every write answered with status 0 and the override unchanged — a
+controller whose variable is write-protected, or CrossComm failing) or ``"ignore"`` (answered with
+status 1 and the value echoed, but the override unchanged, so a read-back shows the old value). The
+monotonic time of the first write not applied is kept in :attr:`KvpSimServer.first_refusal_s`.
+
 Binds 127.0.0.1 unless told otherwise; port 0 picks a free port (see :attr:`KvpSimServer.address`).
 """
 
@@ -34,7 +41,7 @@ from robot_io.links.kvp import (
     parse_request,
 )
 
-__all__ = ["MAX_VARIABLES", "KvpServerStats", "KvpSimServer"]
+__all__ = ["MAX_VARIABLES", "OVERRIDE_MODES", "KvpServerStats", "KvpSimServer"]
 
 _log = logging.getLogger(__name__)
 
@@ -45,6 +52,9 @@ _POLL_S = 0.05
 #: (each entry may be a 4 KiB value) or slow every look-up. The controller's own names and a
 #: test's fit many times over.
 MAX_VARIABLES = 1024
+
+#: What the simulated controller does with a write of ``$OV_PRO`` (see the module docstring).
+OVERRIDE_MODES = ("apply", "refuse", "ignore")
 
 _DEFAULT_VARIABLES = {
     OV_PRO: "100",
@@ -69,6 +79,8 @@ class KvpServerStats:
         unsupported: well-formed array requests (functions 2/3), answered with status 0.
         idle_closed: connections closed by the idle timeout.
         ov_pro_writes: accepted writes of ``$OV_PRO``.
+        ov_pro_refused: writes of ``$OV_PRO`` not applied because of :attr:`KvpSimServer.override_mode`
+            (answered status 0 when ``"refuse"``, status 1 when ``"ignore"``).
         table_full: writes of a new name refused because :data:`MAX_VARIABLES` were held.
     """
 
@@ -80,6 +92,7 @@ class KvpServerStats:
     unsupported: int = 0
     idle_closed: int = 0
     ov_pro_writes: int = 0
+    ov_pro_refused: int = 0
     table_full: int = 0
 
 
@@ -97,15 +110,23 @@ class KvpSimServer(SimulatedPeer):
         reply_delay_s: artificial delay before each reply [s] (to test timeouts and late replies).
         variables: initial variables (name → KRL value text); default ``$OV_PRO`` = "100" and a few
             identification variables.
+        override_mode: what a write of ``$OV_PRO`` does, one of :data:`OVERRIDE_MODES` (the
+            attribute of the same name can be changed while the server runs).
     """
 
     def __init__(self, host: str = "127.0.0.1", port: int = 0, count_trailer: bool = True,
                  max_clients: int = 10, idle_timeout_s: float = 30.0, programmed_speed: float = 1e-3,
                  tau: float = 0.03, reply_delay_s: float = 0.0,
-                 variables: dict[str, str] | None = None) -> None:
+                 variables: dict[str, str] | None = None, override_mode: str = "apply") -> None:
         if max_clients < 1 or idle_timeout_s <= 0 or reply_delay_s < 0:
             raise LinkError("kvp-sim", "max_clients >= 1, idle_timeout_s > 0 and reply_delay_s >= 0 "
                                        "are required")
+        if override_mode not in OVERRIDE_MODES:
+            raise LinkError("kvp-sim", f"override_mode {override_mode!r}: use one of "
+                                       f"{', '.join(OVERRIDE_MODES)}")
+        self.override_mode = override_mode
+        #: monotonic time [s] of the first ``$OV_PRO`` write not applied (None: none yet)
+        self.first_refusal_s: float | None = None
         self.host, self.port = host, int(port)
         self.count_trailer = count_trailer
         self.max_clients = max_clients
@@ -294,6 +315,13 @@ class KvpSimServer(SimulatedPeer):
             if not 0 <= percent <= 100:
                 return None, False
             value = str(percent)
+            mode = self.override_mode
+            if mode != "apply":   # a controller that does not take the override
+                with self._lock:
+                    if self.first_refusal_s is None:
+                        self.first_refusal_s = time.monotonic()
+                self._count(ov_pro_refused=1)
+                return (None, False) if mode == "refuse" else (value, True)
         with self._lock:   # look up and insert at once: the bound holds with many clients
             existing = next((k for k in self.variables if k.upper() == key), None)
             full = existing is None and len(self.variables) >= MAX_VARIABLES

@@ -1,25 +1,26 @@
-"""KUKA RSI over UDP: the XML telegrams and the PC-side server, the override link of a KR C4.
+"""KUKA RSI over UDP: the PC-side server, the override link of a KR C4.
 
 The controller is the client: every cycle (4 ms ``#IPO_FAST`` or 12 ms ``#IPO``) it sends a ``<Rob>``
 telegram and expects a ``<Sen>`` reply, echoing its ``IPOC`` unchanged, inside the cycle
-(KUKA_IO.md §2.1–2.3). :class:`RsiServer` answers every telegram at once with zero ``RKorr``, the
-echoed ``IPOC`` and the override channel (``<OvProW>`` → ``MAP2OV_PRO`` → ``$OV_PRO``, §2.4).
+(KUKA_IO.md §2.1–2.3). :class:`RsiServer` answers every telegram at once with a zero correction,
+the echoed ``IPOC`` and the override channel (``<OvProW>`` → ``MAP2OV_PRO`` → ``$OV_PRO``, §2.4);
+the shape of the reply (SENTYPE, correction element and its attributes, override tags) is the
+controller's ETHERNET configuration, :class:`~robot_io.links.rsi_config.RsiConfig`. The telegrams
+and their checks are :mod:`robot_io.links.rsi_telegram` (re-exported here).
 
-Parsing treats every datagram as untrusted:
+Who may talk: the server locks to the configured controller address (``controller``) or to the
+sender of the first valid ``<Rob>``, and drops datagrams from anyone else before parsing them
+(counted in :attr:`RsiServer.foreign_dropped`). Without a configured port, the lock follows the
+controller to a new source port only while the link is down (an RSI restart).
 
-- size-bounded (``max_packet_bytes``, 4 KiB by default) before any parsing;
-- XML through ``defusedxml`` with DTDs forbidden: no entity expansion (billion laughs), no external
-  entities, no DTD at all;
-- attribute and element names matched case-insensitively (``Type`` and ``TYPE`` both occur);
-- the ``<Dat TaskType="b">`` wrapper of older configurations accepted (its children are read as the
-  root's);
-- ``IPOC`` must be an unsigned 64-bit decimal integer; its text is echoed exactly as received;
-- an XML declaration naming an encoding that neither expat nor Python knows
-  (``encoding="UTF-1"``) is a malformed packet like any other.
-
-Any packet that fails is dropped (no reply) and counted as malformed. The first packet after the
-link (re)starts is dropped when shorter than 100 bytes (older RSI sends one short telegram first;
+Any packet that fails to parse (:mod:`~robot_io.links.rsi_telegram`: size, encoding, XML, IPOC,
+value ranges) is dropped (no reply) and counted as malformed. The first packet after the link
+(re)starts is dropped when shorter than 100 bytes (older RSI sends one short telegram first;
 counted apart, not as malformed).
+
+The controller's IPOC step per cycle (4 or 12 ms on a KR C4, whatever a simulator uses) is learned
+from the IPOC sequence itself, never taken from the supervisor's loop period:
+:attr:`RsiServer.missed_cycles` counts the cycles the sequence skipped.
 """
 
 from __future__ import annotations
@@ -27,21 +28,36 @@ from __future__ import annotations
 import collections
 import logging
 import math
+import os
 import re
 import socket
 import threading
 import time
-from dataclasses import dataclass, field
-from xml.etree.ElementTree import Element, ParseError
-
-import defusedxml.ElementTree as safe_et
-from defusedxml import DefusedXmlException
 
 from robot_io.links.base import LinkError, LinkStats, LinkStatus, ProtocolError, StatsCounter, override_to_int
+from robot_io.links.rsi_config import RsiConfig, load_rsi_config
+from robot_io.links.rsi_telegram import (
+    AXIS_LIMIT,
+    DELAY_MAX,
+    IPOC_MAX,
+    MAX_PACKET_BYTES,
+    ORIENTATION_LIMIT_DEG,
+    POSITION_LIMIT_MM,
+    RobTelegram,
+    SenTelegram,
+    build_rob,
+    build_sen,
+    parse_rob,
+    parse_sen,
+)
 
 __all__ = [
+    "AXIS_LIMIT",
+    "DELAY_MAX",
     "IPOC_MAX",
     "MAX_PACKET_BYTES",
+    "ORIENTATION_LIMIT_DEG",
+    "POSITION_LIMIT_MM",
     "SHORT_FIRST_PACKET_BYTES",
     "RobTelegram",
     "RsiServer",
@@ -54,181 +70,12 @@ __all__ = [
 
 _log = logging.getLogger(__name__)
 
-#: Largest datagram parsed [bytes]; a full ``<Rob>`` with poses, currents and Tech is about 1.2 kB.
-MAX_PACKET_BYTES = 4096
 #: A first packet shorter than this is the short start telegram of older RSI [bytes]
 #: (ros-industrial kuka_rsi_hw_interface drops it).
 SHORT_FIRST_PACKET_BYTES = 100
-IPOC_MAX = 2**64 - 1
 #: Poll period of the server socket for the stop flag and the link timeout [s].
 _POLL_S = 0.02
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_.-]{0,63}$")
-_DIGITS = re.compile(r"^[0-9]{1,20}$")
-_POSE_KEYS = ("X", "Y", "Z", "A", "B", "C")
-_AXIS_KEYS = ("A1", "A2", "A3", "A4", "A5", "A6")
-
-
-def _root(data: bytes, tag: str, max_bytes: int) -> tuple[dict[str, str], list[Element], bool]:
-    """(root attributes with lower-case names, body elements, ``<Dat>`` wrapper seen) of an RSI
-    telegram; raises ProtocolError."""
-    n = len(data)
-    if n > max_bytes:
-        raise ProtocolError("rsi", f"larger than {max_bytes} bytes", n)
-    if n == 0:
-        raise ProtocolError("rsi", "empty datagram", n)
-    try:
-        root = safe_et.fromstring(data, forbid_dtd=True, forbid_entities=True, forbid_external=True)
-    except DefusedXmlException as e:
-        raise ProtocolError("rsi", f"refused XML feature: {type(e).__name__}", n) from None
-    except (ParseError, ValueError) as e:   # UnicodeError is a ValueError
-        raise ProtocolError("rsi", f"not well-formed XML: {e}", n) from None
-    except LookupError as e:   # expat hands a declared encoding it lacks to Python's codecs
-        raise ProtocolError("rsi", f"unknown XML encoding: {str(e)[:60]}", n) from None
-    if root.tag.lower() != tag.lower():
-        raise ProtocolError("rsi", f"root element <{root.tag[:40]}>, expected <{tag}>", n)
-    body: list[Element] = []
-    dat = False
-    for child in root:
-        if child.tag.lower() == "dat":
-            body.extend(child)
-            dat = True
-        else:
-            body.append(child)
-    return {k.lower(): v for k, v in root.attrib.items()}, body, dat
-
-
-def _ipoc(body: list[Element], size: int) -> tuple[int, str]:
-    texts = [e.text for e in body if e.tag.lower() == "ipoc"]
-    if len(texts) != 1:
-        raise ProtocolError("rsi", f"{len(texts)} <IPOC> elements, expected one", size)
-    text = (texts[0] or "").strip()
-    if not _DIGITS.match(text) or int(text) > IPOC_MAX:
-        raise ProtocolError("rsi", f"IPOC {text[:30]!r} is not an unsigned 64-bit integer", size)
-    return int(text), text
-
-
-#: Elements whose attributes must all be finite numbers (poses, axes, the late counter,
-#: corrections); other elements keep only their numeric attributes.
-_NUMERIC = frozenset({"RIST", "RSOL", "AIPOS", "ASPOS", "EIPOS", "ESPOS", "MACUR", "DELAY", "RKORR", "AKORR"})
-
-
-def _floats(elem: Element, size: int) -> dict[str, float]:
-    strict = elem.tag.upper() in _NUMERIC
-    out: dict[str, float] = {}
-    for k, v in elem.attrib.items():
-        try:
-            x = float(v)
-        except ValueError:
-            x = math.nan
-        if not math.isfinite(x):
-            if strict:
-                raise ProtocolError("rsi", f"<{elem.tag[:40]}> {k[:40]}={v[:30]!r} is not a finite number",
-                                    size)
-            continue
-        out[k.upper()] = x
-    return out
-
-
-@dataclass(frozen=True)
-class RobTelegram:
-    """A parsed ``<Rob>`` telegram (robot → PC).
-
-    Attributes:
-        ipoc: interpolation counter [ms] (opaque, unsigned 64-bit).
-        ipoc_text: ``IPOC`` as received (what the reply echoes).
-        type: the root ``Type``/``TYPE`` attribute, ``None`` when absent.
-        poses: elements with numeric attributes, by upper-case tag (``"RIST"`` → {"X": mm, ..., "C":
-            deg}, ``"AIPOS"`` → {"A1": deg, ...}, ``"DELAY"`` → {"D": count}).
-        values: text elements by upper-case tag (``"OVPRO"`` → "100").
-        dat: the body was wrapped in ``<Dat>``.
-    """
-
-    ipoc: int
-    ipoc_text: str
-    type: str | None
-    poses: dict[str, dict[str, float]] = field(default_factory=dict)
-    values: dict[str, str] = field(default_factory=dict)
-    dat: bool = False
-
-    @property
-    def rist(self) -> dict[str, float] | None:
-        """Actual Cartesian pose (X, Y, Z [mm]; A, B, C [deg]) or ``None``."""
-        return self.poses.get("RIST")
-
-    @property
-    def aipos(self) -> dict[str, float] | None:
-        """Actual axis angles A1..A6 [deg] or ``None``."""
-        return self.poses.get("AIPOS")
-
-    @property
-    def delay(self) -> int | None:
-        """The controller's late-packet counter (``<Delay D=..>``) or ``None``."""
-        d = self.poses.get("DELAY", {}).get("D")
-        return None if d is None else int(d)
-
-    @property
-    def ov_pro(self) -> float | None:
-        """``$OV_PRO`` the controller reports (``<OvPro>``) [percent], ``None`` when absent or bad."""
-        text = self.values.get("OVPRO")
-        try:
-            v = float(text) if text is not None else None
-        except ValueError:
-            return None
-        return v if v is not None and math.isfinite(v) else None
-
-
-def parse_rob(data: bytes, max_bytes: int = MAX_PACKET_BYTES) -> RobTelegram:
-    """Parse a ``<Rob>`` datagram; raises :class:`~robot_io.links.base.ProtocolError`."""
-    attrs, body, dat = _root(data, "Rob", max_bytes)
-    ipoc, text = _ipoc(body, len(data))
-    poses: dict[str, dict[str, float]] = {}
-    values: dict[str, str] = {}
-    for e in body:
-        tag = e.tag.upper()
-        if tag == "IPOC":
-            continue
-        if e.attrib:
-            poses[tag] = _floats(e, len(data))
-        else:
-            values[tag] = (e.text or "").strip()
-    return RobTelegram(ipoc, text, attrs.get("type"), poses, values, dat)
-
-
-@dataclass(frozen=True)
-class SenTelegram:
-    """A parsed ``<Sen>`` telegram (PC → robot).
-
-    Attributes:
-        ipoc, ipoc_text: the echoed counter.
-        type: the root ``Type`` attribute (must equal the config's SENTYPE), ``None`` when absent.
-        override: the override channel's value [percent], ``None`` when the element is absent (the
-            controller then holds the last value: HOLDON=1).
-        corrections: correction elements by upper-case tag (``"RKORR"``, ``"AKORR"``).
-    """
-
-    ipoc: int
-    ipoc_text: str
-    type: str | None
-    override: int | None
-    corrections: dict[str, dict[str, float]] = field(default_factory=dict)
-
-
-def parse_sen(data: bytes, override_tag: str = "OvProW", max_bytes: int = MAX_PACKET_BYTES) -> SenTelegram:
-    """Parse a ``<Sen>`` datagram; raises :class:`~robot_io.links.base.ProtocolError`."""
-    attrs, body, _ = _root(data, "Sen", max_bytes)
-    ipoc, text = _ipoc(body, len(data))
-    override = None
-    corrections: dict[str, dict[str, float]] = {}
-    for e in body:
-        tag = e.tag.upper()
-        if tag == override_tag.upper():
-            raw = (e.text or "").strip()
-            if not re.match(r"^-?[0-9]{1,6}$", raw):
-                raise ProtocolError("rsi", f"<{e.tag}> {raw[:30]!r} is not an integer", len(data))
-            override = int(raw)
-        elif e.attrib:
-            corrections[tag] = _floats(e, len(data))
-    return SenTelegram(ipoc, text, attrs.get("type"), override, corrections)
 
 
 def _check_name(name: str, what: str) -> str:
@@ -237,63 +84,63 @@ def _check_name(name: str, what: str) -> str:
     return name
 
 
-def build_sen(ipoc_text: str, override_percent: int | None, sentype: str = "ImFree",
-              override_tag: str = "OvProW", correction: str | None = "RKorr", dat: bool = False,
-              estr: str | None = None) -> bytes:
-    """A ``<Sen>`` reply: zero correction, the override channel (omitted when ``None``), the IPOC echo.
+class _IpocSteps:
+    """The controller's IPOC step per cycle, learned from the sequence, and the cycles it skipped.
 
-    ``ipoc_text`` is echoed verbatim (pass :attr:`RobTelegram.ipoc_text`); ``correction`` is
-    ``"RKorr"`` (X..C), ``"AKorr"`` (A1..A6) or ``None`` (no correction element); ``estr`` is free
-    ASCII text shown on the HMI (XML-escaped).
+    The step is the smallest positive step of the current link session (a lost telegram makes a
+    step a multiple of it, never smaller). Steps are kept as a histogram so that a loss seen before
+    the true step showed is recounted once it does.
     """
-    parts = [f'<Sen Type="{sentype}">']
-    if dat:
-        parts.append('<Dat TaskType="b">')
-    if estr is not None:
-        safe = (estr.encode("ascii", "replace").decode().replace("&", "&amp;").replace("<", "&lt;")
-                .replace(">", "&gt;"))
-        parts.append(f"<EStr>{safe}</EStr>")
-    if correction == "RKorr":
-        parts.append('<RKorr X="0.0" Y="0.0" Z="0.0" A="0.0" B="0.0" C="0.0"/>')
-    elif correction == "AKorr":
-        parts.append('<AKorr A1="0.0" A2="0.0" A3="0.0" A4="0.0" A5="0.0" A6="0.0"/>')
-    if override_percent is not None:
-        parts.append(f"<{override_tag}>{int(override_percent)}</{override_tag}>")
-    parts.append(f"<IPOC>{ipoc_text}</IPOC>")
-    if dat:
-        parts.append("</Dat>")
-    parts.append("</Sen>")
-    return "".join(parts).encode("ascii")
+
+    #: Distinct steps kept; past that, further new steps are counted with the step known then.
+    MAX_DISTINCT = 256
+
+    def __init__(self) -> None:
+        self.step: int | None = None
+        self._hist: dict[int, int] = {}
+        self._before = 0  # missed cycles of earlier sessions and of folded steps
+
+    def restart(self) -> None:
+        """A new link session: keep the count, learn the step again."""
+        self._before = self.missed
+        self._hist.clear()
+        self.step = None
+
+    def add(self, step: int) -> None:
+        if step <= 0:
+            return
+        if step in self._hist:
+            self._hist[step] += 1
+        elif len(self._hist) < self.MAX_DISTINCT:
+            self._hist[step] = 1
+        else:
+            self._before += max(0, step // (self.step or step) - 1)
+            return
+        if self.step is None or step < self.step:
+            self.step = step
+
+    @property
+    def missed(self) -> int:
+        c = self.step
+        if c is None:
+            return self._before
+        return self._before + sum(n * (s // c - 1) for s, n in self._hist.items())
 
 
-def build_rob(ipoc: int, rist_mm_deg: tuple[float, ...] | None = None,
-              aipos_deg: tuple[float, ...] | None = None, delay: int | None = 0,
-              ov_pro_percent: float | None = None, type_attr: str = "Type", dat: bool = False,
-              precision: int = 4) -> bytes:
-    """A ``<Rob>`` telegram as a controller sends it (for the simulated controller and tests).
-
-    ``rist_mm_deg`` = (X, Y, Z [mm], A, B, C [deg]); ``aipos_deg`` = A1..A6 [deg]; ``type_attr`` is
-    the spelling of the root attribute (``"Type"`` on real controllers, ``"TYPE"`` in ROS sims).
-    """
-    p = int(precision)
-    parts = [f'<Rob {type_attr}="KUKA">']
-    if dat:
-        parts.append('<Dat TaskType="b">')
-    if rist_mm_deg is not None:
-        parts.append("<RIst " + " ".join(f'{k}="{v:.{p}f}"' for k, v in zip(_POSE_KEYS, rist_mm_deg,
-                                                                          strict=True)) + "/>")
-    if aipos_deg is not None:
-        parts.append("<AIPos " + " ".join(f'{k}="{v:.{p}f}"' for k, v in zip(_AXIS_KEYS, aipos_deg,
-                                                                           strict=True)) + "/>")
-    if delay is not None:
-        parts.append(f'<Delay D="{int(delay)}"/>')
-    if ov_pro_percent is not None:
-        parts.append(f"<OvPro>{int(round(ov_pro_percent))}</OvPro>")
-    parts.append(f"<IPOC>{int(ipoc)}</IPOC>")
-    if dat:
-        parts.append("</Dat>")
-    parts.append("</Rob>")
-    return "".join(parts).encode("ascii")
+def _resolve_controller(controller: str | tuple[str, int] | None) -> tuple[str | None, int | None]:
+    """(IP, port or None) of a configured controller address; raises LinkError."""
+    if controller is None:
+        return None, None
+    if isinstance(controller, str):
+        host, port = controller, None
+    else:
+        host, port = controller[0], (None if controller[1] in (None, 0) else int(controller[1]))
+    if port is not None and not 1 <= port <= 65535:
+        raise LinkError("rsi", f"controller port {port} is not a UDP port (1..65535)")
+    try:
+        return socket.gethostbyname(host), port
+    except OSError as e:
+        raise LinkError("rsi", f"cannot resolve the controller address {host!r}: {e}") from e
 
 
 class RsiServer:
@@ -308,29 +155,55 @@ class RsiServer:
         correction: ``"RKorr"``, ``"AKorr"`` or ``None``: the zero correction element sent.
         dat: wrap replies in ``<Dat TaskType="b">``; ``None`` mirrors the robot's telegrams.
         initial_override_percent: sent until :meth:`set_override` is called, when the robot reports no
-            ``<OvPro>``; when it does, its own value is echoed (no jump at start).
+            override; when it does, its own value is echoed (no jump at start).
         reply_budget_s: a reply sent later than this after its telegram arrived counts as late [s].
         link_timeout_s: no ``<Rob>`` for this long → link down, counted as a timeout [s].
-        cycle_ms: the controller's IPOC step per cycle [ms] (4 or 12), for :attr:`missed_cycles`;
-            ``None`` learns it as the smallest step seen.
+        cycle_ms: the IPOC step the controller is expected to use [ms], a cross-check only: the step
+            is always learned from the IPOC sequence (see :attr:`cycle_ms`), so the supervisor's
+            loop period never enters :attr:`missed_cycles`; a mismatch is logged once.
         max_packet_bytes: datagrams longer than this are malformed [bytes].
         keep_reply_times: how many reply times to keep for :meth:`reply_times`.
+        config: the controller's ETHERNET configuration (an
+            :class:`~robot_io.links.rsi_config.RsiConfig` or the path of its XML file): SENTYPE,
+            correction element and attributes, override channel and read-back. Given, it replaces
+            ``sentype``, ``override_tag`` and ``correction`` (which must then be left at their
+            defaults), and its PORT must equal ``port`` unless ``port`` is 0.
+        controller: the controller's address, ``"HOST"`` or ``(HOST, PORT)``: only datagrams from it
+            are parsed. ``None``: lock to the sender of the first valid ``<Rob>``.
 
     Counters (:attr:`stats`): ``replies`` = valid telegrams, ``sent`` = replies, ``malformed``,
-    ``late``, ``timeouts``, ``reconnects``; :attr:`short_first_dropped` and :attr:`missed_cycles`
-    (cycles skipped by the IPOC sequence, i.e. telegrams lost on the way in) apart.
+    ``late``, ``timeouts``, ``reconnects``; apart: :attr:`short_first_dropped`,
+    :attr:`foreign_dropped` (datagrams from another sender than the controller, dropped unparsed)
+    and :attr:`missed_cycles` (cycles skipped by the IPOC sequence, i.e. telegrams lost on the way
+    in).
     """
 
     def __init__(self, bind_host: str = "127.0.0.1", port: int = 0, sentype: str = "ImFree",
-                 override_tag: str = "OvProW", correction: str | None = "RKorr", dat: bool | None = None,
-                 initial_override_percent: float = 100.0, reply_budget_s: float = 0.002,
-                 link_timeout_s: float = 0.25, cycle_ms: int | None = None,
+                 override_tag: str | None = "OvProW", correction: str | None = "RKorr",
+                 dat: bool | None = None, initial_override_percent: float = 100.0,
+                 reply_budget_s: float = 0.002, link_timeout_s: float = 0.25, cycle_ms: int | None = None,
                  max_packet_bytes: int = MAX_PACKET_BYTES,
-                 keep_reply_times: int = 100_000) -> None:
-        _check_name(sentype, "sentype")
-        _check_name(override_tag, "override_tag")
-        if correction not in ("RKorr", "AKorr", None):
-            raise LinkError("rsi", f"correction {correction!r}: use 'RKorr', 'AKorr' or None")
+                 keep_reply_times: int = 100_000, config: RsiConfig | str | os.PathLike[str] | None = None,
+                 controller: str | tuple[str, int] | None = None) -> None:
+        if config is None:
+            _check_name(sentype, "sentype")
+            if override_tag is not None:
+                _check_name(override_tag, "override_tag")
+            cfg = RsiConfig.from_options(sentype, override_tag, correction)
+        else:
+            if (sentype, override_tag, correction) != ("ImFree", "OvProW", "RKorr"):
+                raise LinkError("rsi", "give the reply's shape either as config or as sentype/override_tag/"
+                                       "correction, not both")
+            cfg = config if isinstance(config, RsiConfig) else load_rsi_config(config)
+        src = f" (RSI config {cfg.source})" if cfg.source else ""
+        if cfg.only_send:
+            raise LinkError("rsi", f"ONLYSEND is TRUE{src}: the controller takes no replies, so no override "
+                                   "can be sent; set <ONLYSEND>FALSE</ONLYSEND>")
+        if cfg.protocol != "UDP":
+            raise LinkError("rsi", f"PROTOCOL {cfg.protocol}{src}: only RSI over UDP is implemented")
+        if cfg.port is not None and port != 0 and port != cfg.port:
+            raise LinkError("rsi", f"the controller sends to port {cfg.port}{src}, but the server would bind "
+                                   f"{port}; use the same port")
         first = override_to_int(initial_override_percent)
         if first is None:
             raise LinkError("rsi", "initial_override_percent must be a finite number")
@@ -338,11 +211,18 @@ class RsiServer:
                 and max_packet_bytes > 0):
             raise LinkError("rsi", "reply_budget_s, link_timeout_s, cycle_ms and max_packet_bytes must be "
                                    "positive")
-        self.sentype, self.override_tag, self.correction, self.dat = sentype, override_tag, correction, dat
+        self.config = cfg
+        self.sentype, self.override_tag, self.correction = cfg.sentype, cfg.override_tag, cfg.correction
+        self.dat = dat
         self.reply_budget_s, self.link_timeout_s = reply_budget_s, link_timeout_s
-        self.cycle_ms, self.max_packet_bytes = cycle_ms, max_packet_bytes
+        self.max_packet_bytes = max_packet_bytes
+        #: The controller's IPOC step per cycle [ms] learned from the sequence (``None`` before two
+        #: telegrams of a link session).
+        self.cycle_ms: int | None = None
+        self._expected_step = cycle_ms
+        self._step_warned = False
+        self._steps = _IpocSteps()
         self._initial = first
-        self._auto_cycle = cycle_ms is None
         self._stats = StatsCounter()
         self._lock = threading.Lock()
         self._override: int | None = None
@@ -351,8 +231,13 @@ class RsiServer:
         self._up = False
         self._ever_up = False
         self._peer: tuple[str, int] | None = None
+        self._lock_ip, self._lock_port = _resolve_controller(controller)
+        self._port_fixed = self._lock_port is not None
+        self._last_foreign: tuple[str, int] | None = None
         self._times: collections.deque[float] = collections.deque(maxlen=keep_reply_times)
         self.short_first_dropped = 0
+        #: Datagrams from another sender than the controller, dropped before parsing.
+        self.foreign_dropped = 0
         self.missed_cycles = 0
         self._stop = threading.Event()
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -372,16 +257,19 @@ class RsiServer:
         value = override_to_int(percent)
         if value is None:
             return LinkStatus(False, f"override {percent!r} is not a finite number; nothing sent")
+        if self.override_tag is None:
+            return LinkStatus(False, "the RSI configuration has no override channel (a RECEIVE element "
+                                     "OvProW wired to MAP2OV_PRO); nothing is sent")
         with self._lock:
             self._override = value
         if self.connected:
             return LinkStatus(True, "sent in next reply", value)
-        return LinkStatus(False, f"no <Rob> from the controller for {self.link_timeout_s} s; value kept "
+        return LinkStatus(False, f"no <Rob> from the controller for {self.link_timeout_s:g} s; value kept "
                                  "for the next reply", value)
 
     def read_override(self) -> float | None:
         with self._lock:
-            return None if self._last_rob is None else self._last_rob.ov_pro
+            return None if self._last_rob is None else self._last_rob.override
 
     @property
     def stats(self) -> LinkStats:
@@ -407,7 +295,7 @@ class RsiServer:
     # -- extras ------------------------------------------------------------------------------------
     @property
     def last_telegram(self) -> RobTelegram | None:
-        """The last valid ``<Rob>`` (pose, axes, Delay, OvPro), ``None`` before the first."""
+        """The last valid ``<Rob>`` (pose, axes, Delay, override), ``None`` before the first."""
         with self._lock:
             return self._last_rob
 
@@ -443,11 +331,36 @@ class RsiServer:
                 self._stats.add(error=f"socket: {e}")
                 continue
             t_rx = time.perf_counter()
+            self._check_timeout()
+            if self._foreign(addr):
+                self._drop_foreign(addr)
+                continue
             try:
                 self._handle(data, addr, t_rx)
             except Exception as e:  # noqa: BLE001 - the server must keep answering
                 _log.exception("rsi server: unexpected error")
                 self._stats.add(malformed=1, error=f"unexpected {type(e).__name__}: {e}")
+
+    def _foreign(self, addr: tuple[str, int]) -> bool:
+        """The datagram is not from the controller (decided on the address alone, before parsing).
+        Only the server thread writes the lock and ``_up``."""
+        if self._lock_ip is not None and addr[0] != self._lock_ip:
+            return True
+        if self._lock_port is not None and addr[1] != self._lock_port:
+            # a controller that restarts RSI may send from a new port: only while the link is down
+            return self._port_fixed or self._up
+        return False
+
+    def _drop_foreign(self, addr: tuple[str, int]) -> None:
+        self.foreign_dropped += 1
+        n = self.foreign_dropped
+        if addr != self._last_foreign:
+            self._last_foreign = addr
+            self._stats.add(error=f"dropped a datagram from {addr[0]}:{addr[1]}, not the controller "
+                                  f"{self._lock_ip}:{self._lock_port}")
+        if n & (n - 1) == 0:  # 1, 2, 4, 8 …: a flood cannot flood the log
+            _log.warning("rsi server: %d datagram(s) from other senders than the controller %s:%s dropped "
+                         "(last from %s:%d)", n, self._lock_ip, self._lock_port, addr[0], addr[1])
 
     def _wanted_override(self) -> int | None:
         """The override to send, ``None`` before any ``set_override`` (hook for
@@ -460,32 +373,46 @@ class RsiServer:
             if lost:
                 self._up = False
         if lost:
-            self._stats.add(timeouts=1, error=f"no <Rob> for {self.link_timeout_s} s")
+            self._stats.add(timeouts=1, error=f"no <Rob> for {self.link_timeout_s:g} s")
+
+    def _learn_step(self, rob: RobTelegram, prev: RobTelegram | None, starting: bool) -> None:
+        if starting:
+            self._steps.restart()
+        elif prev is not None and rob.ipoc > prev.ipoc:
+            self._steps.add(rob.ipoc - prev.ipoc)
+        self.cycle_ms = self._steps.step
+        self.missed_cycles = self._steps.missed
+        step, want = self.cycle_ms, self._expected_step
+        if step is not None and want is not None and step != want and not self._step_warned:
+            self._step_warned = True
+            _log.info("rsi server: the controller steps IPOC by %d ms a telegram, not the expected %d ms; "
+                      "missed cycles are counted with the controller's step", step, want)
 
     def _handle(self, data: bytes, addr: tuple[str, int], t_rx: float) -> None:
-        self._check_timeout()
         with self._lock:
             starting = not self._up
         if starting and len(data) < SHORT_FIRST_PACKET_BYTES:
             self.short_first_dropped += 1
             return
         try:
-            rob = parse_rob(data, self.max_packet_bytes)
+            rob = parse_rob(data, self.max_packet_bytes, self.config.override_read_tag)
         except ProtocolError as e:
             self._stats.add(malformed=1, error=str(e))
             return
+        cfg = self.config
         with self._lock:
             prev = self._last_rob
-            value = self._wanted_override()
-            if value is None:
-                value = override_to_int(rob.ov_pro) if rob.ov_pro is not None else self._initial
+            value = self._wanted_override() if cfg.override_tag is not None else None
+            if value is None and cfg.override_tag is not None:
+                value = override_to_int(rob.override) if rob.override is not None else self._initial
         dat = rob.dat if self.dat is None else self.dat
-        reply = build_sen(rob.ipoc_text, value, self.sentype, self.override_tag, self.correction, dat)
-        if prev is not None and not starting and rob.ipoc > prev.ipoc:
-            step = rob.ipoc - prev.ipoc
-            if self._auto_cycle:
-                self.cycle_ms = step if self.cycle_ms is None else min(self.cycle_ms, step)
-            self.missed_cycles += max(0, step // (self.cycle_ms or step) - 1)
+        reply = build_sen(rob.ipoc_text, value, cfg.sentype, cfg.override_tag or "", cfg.correction, dat,
+                          correction_tags=cfg.correction_tags)
+        self._learn_step(rob, prev, starting)
+        if self._lock_ip is None:
+            self._lock_ip = addr[0]
+        if not self._port_fixed:
+            self._lock_port = addr[1]
         again = starting and self._ever_up
         self._ever_up = True
         # Everything is counted before the reply leaves, so a peer that has the reply sees the counts.

@@ -8,18 +8,27 @@ copies its counters and the controller's state into a shared block every
 :data:`SYNC_PERIOD_S`. The interface is :class:`~robot_io.links.base.RobotLink`, as for the
 in-process server; :attr:`stats`, :meth:`read_override` and :attr:`connected` lag the server by at
 most one sync period. ``benchmarks/link_latency.py`` measures both against a CPU-bound thread.
+
+Every way the child can fail to start — the port cannot be bound, a bad option, an interpreter
+that dies before it reports (a broken environment), a child that cannot be spawned or does not
+answer within :data:`_START_TIMEOUT_S` — is a :class:`~robot_io.links.base.LinkError` from the
+constructor, with the child's exit code when it has one.
 """
 
 from __future__ import annotations
 
 import math
 import multiprocessing as mp
+import os
+import pickle
 import threading
 import time
+from multiprocessing import spawn
 from typing import Any
 
 from robot_io.links.base import LinkError, LinkStats, LinkStatus, override_to_int
 from robot_io.links.rsi import RobTelegram, RsiServer
+from robot_io.links.rsi_config import RsiConfig, load_rsi_config
 
 __all__ = ["SYNC_PERIOD_S", "RsiProcessServer"]
 
@@ -28,7 +37,7 @@ SYNC_PERIOD_S = 0.005
 #: How long the child may take to start (spawn re-imports the package) [s].
 _START_TIMEOUT_S = 60.0
 _FIELDS = ("sent", "replies", "malformed", "late", "timeouts", "reconnects", "short_first_dropped",
-           "missed_cycles", "last_rx", "up", "ov_pro")
+           "missed_cycles", "last_rx", "up", "ov_pro", "foreign_dropped", "cycle_ms")
 _IDX = {name: i for i, name in enumerate(_FIELDS)}
 _ERR_BYTES = 256
 
@@ -52,6 +61,9 @@ def _child(kwargs: dict, cell: Any, block: Any, err: Any, pipe: Any) -> None:
     except LinkError as e:
         pipe.send(("error", str(e)))
         return
+    except Exception as e:  # noqa: BLE001 - any failure to start is reported, not a dead pipe
+        pipe.send(("error", f"RSI server could not start: {type(e).__name__}: {e}"))
+        return
     pipe.send(("address", srv.address))
     try:
         while True:
@@ -59,7 +71,8 @@ def _child(kwargs: dict, cell: Any, block: Any, err: Any, pipe: Any) -> None:
             last = srv.last_telegram
             values = (st.sent, st.replies, st.malformed, st.late, st.timeouts, st.reconnects,
                       srv.short_first_dropped, srv.missed_cycles, srv.last_receive_time, float(srv.connected),
-                      math.nan if last is None or last.ov_pro is None else last.ov_pro)
+                      math.nan if last is None or last.override is None else last.override,
+                      srv.foreign_dropped, math.nan if srv.cycle_ms is None else srv.cycle_ms)
             for i, v in enumerate(values):
                 block[i] = v
             msg = st.last_error.encode("ascii", "replace")[:_ERR_BYTES - 1]
@@ -83,34 +96,61 @@ class RsiProcessServer:
     :class:`~robot_io.links.base.RobotLink`).
 
     Args:
-        bind_host, port, and any keyword of :class:`~robot_io.links.rsi.RsiServer` (``sentype``,
-        ``override_tag``, ``reply_budget_s``, ``link_timeout_s``, ...).
+        bind_host, port, and any keyword of :class:`~robot_io.links.rsi.RsiServer` (``config``,
+        ``controller``, ``reply_budget_s``, ``link_timeout_s``, ...); a ``config`` path is read here,
+        in the caller's process, so a bad file fails before the child is spawned.
 
     Starting takes about a second (the child imports the package); construction raises
-    :class:`~robot_io.links.base.LinkError` when the port cannot be bound or the child does not start.
+    :class:`~robot_io.links.base.LinkError` for every start failure (see the module docstring).
     """
 
     def __init__(self, bind_host: str = "127.0.0.1", port: int = 0, **kwargs: Any) -> None:
+        self._closed = True  # until the child has started
+        config = kwargs.get("config")
+        if config is not None and not isinstance(config, RsiConfig):
+            kwargs["config"] = load_rsi_config(config)  # errors here, in the caller's process
+        cfg = kwargs.get("config")
+        self.override_tag = (cfg.override_tag if isinstance(cfg, RsiConfig)
+                             else kwargs.get("override_tag", "OvProW"))
         ctx = mp.get_context("spawn")
         self.link_timeout_s = float(kwargs.get("link_timeout_s", 0.25))
         self._cell = ctx.RawValue("i", -1)
         self._block = ctx.RawArray("d", len(_FIELDS))
         self._block[_IDX["ov_pro"]] = math.nan
         self._block[_IDX["last_rx"]] = -math.inf
+        self._block[_IDX["cycle_ms"]] = math.nan
         self._err = ctx.RawArray("c", _ERR_BYTES)
         self._pipe, child_end = ctx.Pipe()
         self._pipe_lock = threading.Lock()
         kwargs.update(bind_host=bind_host, port=port)
         self._proc = ctx.Process(target=_child, args=(kwargs, self._cell, self._block, self._err, child_end),
                                  name=f"rsi-server-{port}", daemon=True)
-        self._proc.start()
-        child_end.close()
-        if not self._pipe.poll(_START_TIMEOUT_S):
+        try:
+            self._proc.start()
+        except (OSError, pickle.PicklingError, TypeError, AttributeError) as e:
+            child_end.close()
+            self._pipe.close()
             self._kill()
-            raise LinkError("rsi", f"RSI server process did not start within {_START_TIMEOUT_S:.0f} s")
-        kind, value = self._pipe.recv()
+            raise LinkError("rsi", f"cannot start the RSI server process: {type(e).__name__}: {e}") from e
+        child_end.close()
+        try:
+            if not self._pipe.poll(_START_TIMEOUT_S):
+                self._kill()
+                self._pipe.close()
+                raise LinkError("rsi", f"RSI server process did not start within {_START_TIMEOUT_S:.0f} s")
+            kind, value = self._pipe.recv()
+        except (EOFError, OSError) as e:  # the child died before it reported
+            self._proc.join(5.0)
+            self._kill()
+            self._pipe.close()
+            raise LinkError("rsi", f"RSI server process exited (exit code {self._proc.exitcode}) before it "
+                                   "started: the child re-imports robot_io and the caller's main module in a "
+                                   f"fresh interpreter; check that {os.fsdecode(spawn.get_executable())} can "
+                                   "import them (a script needs an `if __name__ == \"__main__\":` guard)"
+                                   ) from e
         if kind == "error":
             self._proc.join(5.0)
+            self._pipe.close()
             raise LinkError("rsi", value.removeprefix("rsi: "))
         self.address: tuple[str, int] = tuple(value)  # type: ignore[assignment]
         self._closed = False
@@ -125,10 +165,13 @@ class RsiProcessServer:
             return LinkStatus(False, f"override {percent!r} is not a finite number; nothing sent")
         if self._closed:
             return LinkStatus(False, "link closed")
+        if self.override_tag is None:
+            return LinkStatus(False, "the RSI configuration has no override channel (a RECEIVE element "
+                                     "OvProW wired to MAP2OV_PRO); nothing is sent")
         self._cell.value = value
         if self.connected:
             return LinkStatus(True, "sent in next reply", value)
-        return LinkStatus(False, f"no <Rob> from the controller for {self.link_timeout_s} s; value kept "
+        return LinkStatus(False, f"no <Rob> from the controller for {self.link_timeout_s:g} s; value kept "
                                  "for the next reply", value)
 
     def read_override(self) -> float | None:
@@ -175,6 +218,17 @@ class RsiProcessServer:
     @property
     def missed_cycles(self) -> int:
         return int(self._get("missed_cycles"))
+
+    @property
+    def foreign_dropped(self) -> int:
+        """Datagrams from other senders than the controller, dropped unparsed."""
+        return int(self._get("foreign_dropped"))
+
+    @property
+    def cycle_ms(self) -> int | None:
+        """The controller's IPOC step per cycle [ms] learned from the sequence, ``None`` before."""
+        v = self._get("cycle_ms")
+        return None if math.isnan(v) else int(v)
 
     def _ask(self, cmd: str) -> Any:
         with self._pipe_lock:

@@ -12,8 +12,12 @@ until the reply deadline (the end of the cycle), and counts:
 
 The override channel of a valid reply is applied to a simulated path speed
 (:class:`~robot_io.links._sim_peer.SimulatedPathSpeed`); a reply without it keeps the last value
-(HOLDON=1). After ``timeout_packets`` consecutive late cycles the controller stops with status
-``"RSIBad"``, like the real one (ETHERNET object ``Timeout``, KSS29002).
+(HOLDON=1). Given the site's ETHERNET configuration (``config``, an
+:class:`~robot_io.links.rsi_config.RsiConfig`), the controller sends the configured override
+read-back element (or none), reads the configured override channel (or none) and counts a reply
+whose ``Type`` is not the configured SENTYPE as malformed. After ``timeout_packets`` consecutive
+late cycles the controller stops with status ``"RSIBad"``, like the real one (ETHERNET object
+``Timeout``, KSS29002).
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from dataclasses import dataclass, replace
 from robot_io.links._sim_peer import SimulatedPathSpeed, SimulatedPeer
 from robot_io.links.base import LinkError, ProtocolError
 from robot_io.links.rsi import MAX_PACKET_BYTES, build_rob, parse_sen
+from robot_io.links.rsi_config import RsiConfig
 
 __all__ = ["RsiSimController", "RsiSimStats"]
 
@@ -81,6 +86,9 @@ class RsiSimController(SimulatedPeer):
         max_cycles: stop after this many cycles (``None``: run until :meth:`stop`).
         bind_host: local address of the client socket.
         keep_round_trips: how many round-trip times to keep.
+        config: the ETHERNET configuration the simulated controller runs (SENTYPE checked in
+            replies, override channel and read-back tags); given, ``override_tag`` must be left at
+            its default.
     """
 
     def __init__(self, server_addr: tuple[str, int], cycle_s: float = 0.004, timeout_packets: int = 100,
@@ -88,9 +96,12 @@ class RsiSimController(SimulatedPeer):
                  override_percent: float = 100.0, override_tag: str = "OvProW",
                  ipoc_start: int = 1_000_000, type_attr: str = "Type", dat: bool = False,
                  short_first_packet: bool = False, max_cycles: int | None = None,
-                 bind_host: str = "127.0.0.1", keep_round_trips: int = 100_000) -> None:
+                 bind_host: str = "127.0.0.1", keep_round_trips: int = 100_000,
+                 config: RsiConfig | None = None) -> None:
         if not (cycle_s > 0 and timeout_packets >= 1):
             raise LinkError("rsi-sim", "cycle_s must be positive and timeout_packets >= 1")
+        if config is not None and override_tag != "OvProW":
+            raise LinkError("rsi-sim", "give the override tag either in config or as override_tag, not both")
         try:
             self.server_addr = (socket.gethostbyname(server_addr[0]), int(server_addr[1]))
         except OSError as e:
@@ -99,7 +110,9 @@ class RsiSimController(SimulatedPeer):
         self.cycle_ms = max(1, int(round(cycle_s * 1000.0)))
         self.timeout_packets = timeout_packets
         self.reply_deadline_s = cycle_s if reply_deadline_s is None else reply_deadline_s
-        self.override_tag = override_tag
+        self.config = config
+        self.override_tag: str | None = override_tag if config is None else config.override_tag
+        self.override_read_tag: str | None = "OvPro" if config is None else config.override_read_tag
         self.type_attr, self.dat, self.short_first_packet = type_attr, dat, short_first_packet
         self.max_cycles = max_cycles
         self.path = SimulatedPathSpeed(programmed_speed, tau, override_percent)
@@ -117,6 +130,7 @@ class RsiSimController(SimulatedPeer):
         except OSError as e:
             self._sock.close()
             raise LinkError("rsi-sim", f"cannot bind {bind_host}: {e}") from e
+        self._local: tuple[str, int] = self._sock.getsockname()[:2]
         self._thread: threading.Thread | None = None
 
     # -- lifecycle ---------------------------------------------------------------------------------
@@ -173,7 +187,8 @@ class RsiSimController(SimulatedPeer):
 
     @property
     def local_address(self) -> tuple[str, int]:
-        return self._sock.getsockname()[:2]
+        """The (host, port) the controller sends from (kept after :meth:`stop`)."""
+        return self._local
 
     # -- cycle -------------------------------------------------------------------------------------
     def _telegram(self, ipoc: int) -> bytes:
@@ -181,8 +196,9 @@ class RsiSimController(SimulatedPeer):
         x, y, z, a, b, c = _START_POSE
         with self._lock:
             delay = self._stats.late
-        return build_rob(ipoc, (x + s_mm, y, z, a, b, c), _AXES_DEG, delay, self.path.override_percent,
-                         self.type_attr, self.dat)
+        ov = self.path.override_percent if self.override_read_tag is not None else None
+        return build_rob(ipoc, (x + s_mm, y, z, a, b, c), _AXES_DEG, delay, ov, self.type_attr, self.dat,
+                         override_tag=self.override_read_tag or "OvPro")
 
     def _classify(self, data: bytes, ipoc: int, t_send: float, t_recv: float = 0.0) -> bool:
         """Handle one received datagram (received at ``t_recv``, perf_counter); ``True`` when it is the
@@ -192,6 +208,10 @@ class RsiSimController(SimulatedPeer):
         except ProtocolError as e:
             self._count(malformed=1)
             _log.debug("rsi-sim: %s", e)
+            return False
+        if self.config is not None and sen.type != self.config.sentype:
+            self._count(malformed=1)
+            _log.debug("rsi-sim: reply Type %r, the configured SENTYPE is %r", sen.type, self.config.sentype)
             return False
         if sen.ipoc != ipoc:
             sent_at = self._sent.get(sen.ipoc)

@@ -18,8 +18,10 @@ first read starts the replay); otherwise every read hands out the next ``max_sam
 from __future__ import annotations
 
 import csv
+import math
 import os
 import time
+import tokenize
 from collections.abc import Callable
 from pathlib import Path
 
@@ -31,6 +33,8 @@ from robot_io.signals.base import SignalChunk, SourceStats, empty_chunk
 __all__ = ["ReplaySource", "SignalFileError", "load_signal"]
 
 _TIME_NAMES = ("t_s", "time_s", "time", "t")
+#: How a zip archive (an ``.npz``) begins: a file, or the end record of an empty archive.
+_ZIP_MAGICS = (b"PK\x03\x04", b"PK\x05\x06")
 
 
 class SignalFileError(CctmillError):
@@ -54,7 +58,10 @@ def _uniform(n: int, fs_hz: float | None, file: str) -> np.ndarray:
         raise SignalFileError(file, 0, "one value per sample and no time column: give the sample "
                               "rate fs_hz")
     if not (np.isfinite(fs_hz) and fs_hz > 0):
-        raise SignalFileError(file, 0, f"sample rate must be positive, got {fs_hz}")
+        raise SignalFileError(file, 0, f"sample rate must be positive, got {fs_hz:g} Hz")
+    if not math.isfinite((n - 1) / float(fs_hz)):   # the last sample's time overflows
+        raise SignalFileError(file, 0, f"sample rate {fs_hz:g} Hz is too small: the times of {n} "
+                              "samples are not finite; give the rate in Hz")
     return np.arange(n) / float(fs_hz)
 
 
@@ -65,11 +72,15 @@ def _read_csv(p: Path, fs_hz: float | None, column: str | None) -> tuple[np.ndar
     except (OSError, UnicodeDecodeError) as e:
         raise SignalFileError(file, 0, f"not readable as UTF-8 text ({e})") from e
     rows: list[tuple[int, list[str]]] = []
-    for lineno, row in enumerate(csv.reader(text.splitlines()), start=1):
-        cells = [c.strip() for c in row]
-        if not cells or not any(cells) or cells[0].startswith("#"):
-            continue
-        rows.append((lineno, cells))
+    reader = csv.reader(text.splitlines())
+    try:
+        for lineno, row in enumerate(reader, start=1):
+            cells = [c.strip() for c in row]
+            if not cells or not any(cells) or cells[0].startswith("#"):
+                continue
+            rows.append((lineno, cells))
+    except csv.Error as e:   # e.g. a field longer than the csv module's limit (128 KiB)
+        raise SignalFileError(file, reader.line_num, f"not readable as CSV ({e})") from None
     if not rows:
         raise SignalFileError(file, 0, "no samples in the file")
     header: list[str] | None = None
@@ -109,7 +120,7 @@ def _read_csv(p: Path, fs_hz: float | None, column: str | None) -> tuple[np.ndar
     bad = np.flatnonzero(~(np.diff(t) > 0) | ~np.isfinite(t[1:]))
     if bad.size or not np.isfinite(t[0]):
         k = int(bad[0]) + 1 if bad.size else 0
-        raise SignalFileError(file, rows[k][0], f"time {t[k]!r} does not increase strictly "
+        raise SignalFileError(file, rows[k][0], f"time {float(t[k]):.10g} does not increase strictly "
                               "(sort the file or drop duplicate rows)")
     return t, values
 
@@ -117,12 +128,22 @@ def _read_csv(p: Path, fs_hz: float | None, column: str | None) -> tuple[np.ndar
 def _read_npy(p: Path, fs_hz: float | None) -> tuple[np.ndarray, np.ndarray]:
     file = str(p)
     try:
-        a = np.load(p, allow_pickle=False)
-    except (OSError, ValueError) as e:
+        with open(p, "rb") as f:
+            zipped = f.read(len(_ZIP_MAGICS[0])) in _ZIP_MAGICS
+        if zipped:   # np.load would open it as a table of arrays (and leak the file if damaged)
+            raise SignalFileError(file, 0, "an .npz archive of arrays, not one array; save the "
+                                  "signal with numpy.save")
+        # memory-mapped, so a header declaring more data than the file holds is refused without
+        # allocating it
+        m = np.load(p, mmap_mode="r", allow_pickle=False)
+    except (OSError, ValueError, EOFError, tokenize.TokenError) as e:
+        # EOFError: an empty file; TokenError: a header numpy cannot tokenise (it tokenises old
+        # headers to read them)
         raise SignalFileError(file, 0, f"not a readable .npy array ({e})") from e
-    if not np.issubdtype(a.dtype, np.number):
-        raise SignalFileError(file, 0, f"dtype {a.dtype} is not numeric")
-    a = np.asarray(a, dtype=float)
+    if m.dtype.kind not in "iuf":       # real numbers only (complex would lose its imaginary part)
+        raise SignalFileError(file, 0, f"dtype {m.dtype} is not real numbers")
+    a = np.array(m, dtype=float)       # a copy: the file is not held open
+    del m
     if a.ndim == 1:
         return _uniform(a.shape[0], fs_hz, file), a
     if a.ndim == 2 and a.shape[1] == 2:
