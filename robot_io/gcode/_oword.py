@@ -51,12 +51,15 @@ MAX_CALL_DEPTH = 100
 #: Most loop iterations and calls of one reading in all (nested loops multiply): about ten
 #: seconds of reading and a GB of moves at most.
 MAX_FLOW_STEPS = 1_000_000
-#: Most lines one reading reads again through loop rounds and calls (each round or call counts
-#: the lines of its body) [lines]: an O-word line costs the interpreter about 20 µs, so this is
-#: about a second of reading. The fuzzing found a 717-byte program whose endless while loop read
-#: 400,000 lines in 8 s before the loop limit stopped it. A program whose loops really expand to
-#: more is one to post from CAM without O-word loops.
-MAX_FLOW_LINES = 50_000
+#: Most lines one reading reads again through loop rounds and calls (each counts its body and
+#: one line more: the loop's test or end, the call) [lines]: a line read by the interpreter costs
+#: 10-40 µs (expressions, rotary kinematics), so this bounds a reading's loops to under a second.
+#: The fuzzing found a 717-byte program whose endless while loop read 400,000 lines in 8 s before
+#: the loop limit stopped it, and 200-byte ones that took 2-4 s under a budget of 50,000 lines on a
+#: loaded machine. Hand-written loops (a facing program's passes, a pattern of pockets) read a few
+#: thousand lines; a program whose loops really expand to more is one to post from CAM without
+#: O-word loops.
+MAX_FLOW_LINES = 20_000
 #: Most arguments of a call (LinuxCNC ``INTERP_SUB_PARAMS``, the local ``#1``–``#30``).
 _MAX_ARGS = P.LOCAL_NUMBERED
 #: An O-line: optional block delete and line number, then O and a label and a keyword.
@@ -297,9 +300,9 @@ def _if(run: _Run, f: Flow, key: tuple, keyword: str, col: int, u: str, end: int
 
 
 def _step(run: _Run, f: Flow, col: int, shown: str, body: int) -> bool:
-    """Count one more loop round or call, whose body is ``body`` lines."""
+    """Count one more loop round or call, whose body is ``body`` lines (see MAX_FLOW_LINES)."""
     f.steps += 1
-    f.reread += max(body, 1)
+    f.reread += max(body, 0) + 1
     if f.steps <= MAX_FLOW_STEPS and f.reread <= MAX_FLOW_LINES:
         return True
     what = (f"runs more than {MAX_FLOW_STEPS:,} loop iterations and calls in all"
