@@ -558,26 +558,32 @@ def test_compiled_grid_is_chosen_for_long_paths_only(monkeypatch: pytest.MonkeyP
     assert grid._compiled
 
 
-def test_compiled_and_numpy_engagement_agree_bit_for_bit(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The demo contour sampled every 0.5 mm (~3,000 steps, sloped lead-ins, both levels): the
-    engagement read from the compiled grid is the numpy grid's, bit for bit."""
+def _demo_sampled(step_max_mm: float):
+    """The demo job's path sampled every ``step_max_mm``, its stock and tool radius."""
     import tomllib
     from importlib import resources
 
-    import planner._zmap_grid as zg
     from planner.job import parse_job
     from planner.path import sample_toolpath
     from planner.prepare import read_job_toolpaths, tool_of
 
     demo = resources.files("planner").joinpath("data/demo/demo_job.toml")
     doc = tomllib.loads(demo.read_text(encoding="utf-8"))
-    doc["path"]["step_max_mm"] = 0.5
+    doc["path"]["step_max_mm"] = step_max_mm
     job = parse_job(doc, str(demo), Path(str(demo)).parent)
     si = job.to_si()
     path_ = sample_toolpath(list(read_job_toolpaths(job, si.chord_tol)), np.eye(4), si.chord_tol,
                             si.step_max)
-    stock = Stock.box(*si.stock_box, *si.stock_z)
-    args = (path_.position_wp, path_.tool_axis_wp, path_.cutting, tool_of(job).radius, stock)
+    return path_, Stock.box(*si.stock_box, *si.stock_z), tool_of(job).radius
+
+
+def test_compiled_and_numpy_engagement_agree_bit_for_bit(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The demo contour sampled every 0.5 mm (~3,000 steps, sloped lead-ins, both levels): the
+    engagement read from the compiled grid is the numpy grid's, bit for bit."""
+    import planner._zmap_grid as zg
+
+    path_, stock, radius = _demo_sampled(0.5)
+    args = (path_.position_wp, path_.tool_axis_wp, path_.cutting, radius, stock)
     results = []
     for threshold, kernel in ((10**12, "planner._not_loaded"), (0, zg._KERNEL)):
         monkeypatch.setattr(zg, "COMPILED_STEPS", threshold)
@@ -585,9 +591,8 @@ def test_compiled_and_numpy_engagement_agree_bit_for_bit(monkeypatch: pytest.Mon
         results.append(zmap_engagement(*args, where=path_.where))
     numpy_, compiled = results
     assert np.sum(numpy_.mode >= 0) > 2_000
-    for name in ("a_e", "a_p", "mode", "radial_dir", "engaged_angle", "phi_st", "phi_ex"):
-        if hasattr(numpy_, name):
-            np.testing.assert_array_equal(getattr(compiled, name), getattr(numpy_, name))
+    for name in ("a_e", "a_p", "mode", "radial_dir", "engaged_angle", "feed_dir", "plunge"):
+        np.testing.assert_array_equal(getattr(compiled, name), getattr(numpy_, name))
     assert compiled.warnings == numpy_.warnings
 
 
@@ -596,24 +601,9 @@ def test_fine_sampling_reads_what_the_level_above_removed() -> None:
     level (z = −20 mm) a_p is the 10 mm level step everywhere, as the 2.5-D model says — the probes
     on the first level's boundary are covered by steps further along than the cells' owners, and
     were read as the uncut 20 mm before."""
-    import tomllib
-    from importlib import resources
-
-    from planner.job import parse_job
-    from planner.path import sample_toolpath
-    from planner.prepare import read_job_toolpaths, tool_of
-
-    demo = resources.files("planner").joinpath("data/demo/demo_job.toml")
-    doc = tomllib.loads(demo.read_text(encoding="utf-8"))
-    doc["path"]["step_max_mm"] = 0.15
-    job = parse_job(doc, str(demo), Path(str(demo)).parent)
-    si = job.to_si()
-    path_ = sample_toolpath(list(read_job_toolpaths(job, si.chord_tol)), np.eye(4), si.chord_tol,
-                            si.step_max)
+    path_, stock, radius = _demo_sampled(0.15)
     assert len(path_) > 10_000
-    stock = Stock.box(*si.stock_box, *si.stock_z)
-    z = zmap_engagement(path_.position_wp, path_.tool_axis_wp, path_.cutting, tool_of(job).radius,
-                        stock)
+    z = zmap_engagement(path_.position_wp, path_.tool_axis_wp, path_.cutting, radius, stock)
     engaged = z.mode >= 0
     assert engaged.sum() > 8_000
     assert z.a_p[engaged].max() <= 10e-3 + 1e-9
