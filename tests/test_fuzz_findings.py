@@ -417,8 +417,25 @@ def test_a_sample_rate_too_small_for_finite_times_is_refused(tmp_path):
     path.write_text("value\n1\n2\n3\n")
     with pytest.raises(SignalFileError, match=r"sample rate 4.94066e-324 Hz is too small: the times of 3 "):
         load_signal(path, fs_hz=5e-324)
-    t, v = load_signal(path, fs_hz=1e-300)      # huge but finite times are times
+    with pytest.raises(SignalFileError, match=r"go beyond 1e\+09 s"):
+        load_signal(path, fs_hz=1e-300)          # finite, but not the times of a recording
+    t, v = load_signal(path, fs_hz=2e-9)        # the last sample at 1e9 s: still a time
     assert np.all(np.isfinite(t)) and np.all(np.diff(t) > 0) and v.tolist() == [1, 2, 3]
+
+
+@pytest.mark.parametrize(("content", "match"), [
+    ("t,v\n0,1\ninf,2\ninf,3\n", r":3: time inf s is not a finite time"),
+    ("t,v\n-1e308,1\n1e308,2\n", r":2: time -1e\+308 s is not a finite time"),
+    ("t,v\n0,1\nnan,2\n", r":3: time nan s is not a finite time"),
+])
+def test_signal_times_out_of_range_are_refused_without_warnings(tmp_path, recwarn, content, match):
+    """Fuzz finding (signal): "inf, inf" times warned "invalid value encountered in subtract" before
+    the file was refused; every time is now checked against one magnitude limit first."""
+    path = tmp_path / "times.csv"
+    path.write_text(content)
+    with pytest.raises(SignalFileError, match=match):
+        load_signal(path)
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
 
 
 def test_a_valid_npy_signal_still_loads(tmp_path):
@@ -471,3 +488,17 @@ def test_gcode_the_flow_limits_keep_a_reading_within_the_time_bound():
              "o1 call\no2 endrepeat\nM30\n")
     with pytest.raises(ToolpathError, match="lines again through its loops and calls"):
         read_gcode_text(calls)
+
+
+def test_udp_a_signalling_nan_sample_is_a_nan_not_a_warning(recwarn):
+    """Fuzz finding (udp): a float32 signalling NaN warned "invalid value encountered in cast"
+    (an error under the suite's warnings filter); it is now a NaN sample, which the supervisor
+    refuses as implausible."""
+    from robot_io.signals.udp import HEADER, MAGIC, parse_samples
+
+    snan = struct.pack("<I", 0x7FA00000)
+    data = HEADER.pack(MAGIC, 7, 0.0, 1000.0, 3) + struct.pack("<f", 1.0) + snan + struct.pack("<f", 2.0)
+    seq, t0, fs, values = parse_samples(data)
+    assert (seq, t0, fs) == (7, 0.0, 1000.0)
+    assert values[0] == 1.0 and math.isnan(values[1]) and values[2] == 2.0
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]

@@ -8,8 +8,10 @@ File formats:
   rate must be given (``fs_hz``) and the samples are taken at ``i / fs_hz``. ``#`` starts a comment.
 - **NPY**: shape (n,) with ``fs_hz`` given, or shape (n, 2) with columns [t_s, value].
 
-Timestamps must increase strictly. A bad file raises :class:`SignalFileError` with the file, the
-line (CSV) and what to fix; reading the loaded replay never raises.
+Timestamps must be finite, increase strictly and lie within ±:data:`MAX_TIME_S` (a
+recording of 31 years; a larger stamp is a corrupt file, not a signal). A bad file raises
+:class:`SignalFileError` with the file, the line (CSV) and what to fix; reading the loaded replay
+never raises.
 
 Pacing: with ``realtime=True`` a read hands out the samples whose time has come on ``clock`` (the
 first read starts the replay); otherwise every read hands out the next ``max_samples`` samples.
@@ -18,7 +20,6 @@ first read starts the replay); otherwise every read hands out the next ``max_sam
 from __future__ import annotations
 
 import csv
-import math
 import os
 import time
 import tokenize
@@ -30,7 +31,10 @@ import numpy as np
 from models.errors import CctmillError
 from robot_io.signals.base import SignalChunk, SourceStats, empty_chunk
 
-__all__ = ["ReplaySource", "SignalFileError", "load_signal"]
+__all__ = ["MAX_TIME_S", "ReplaySource", "SignalFileError", "load_signal"]
+
+#: Largest |timestamp| read [s] (the readers' magnitude limit, as for coordinates).
+MAX_TIME_S = 1e9
 
 _TIME_NAMES = ("t_s", "time_s", "time", "t")
 #: How a zip archive (an ``.npz``) begins: a file, or the end record of an empty archive.
@@ -59,9 +63,9 @@ def _uniform(n: int, fs_hz: float | None, file: str) -> np.ndarray:
                               "rate fs_hz")
     if not (np.isfinite(fs_hz) and fs_hz > 0):
         raise SignalFileError(file, 0, f"sample rate must be positive, got {fs_hz:g} Hz")
-    if not math.isfinite((n - 1) / float(fs_hz)):   # the last sample's time overflows
+    if not (n - 1) / float(fs_hz) <= MAX_TIME_S:   # the last sample's time is not a time
         raise SignalFileError(file, 0, f"sample rate {fs_hz:g} Hz is too small: the times of {n} "
-                              "samples are not finite; give the rate in Hz")
+                              f"samples go beyond {MAX_TIME_S:g} s; give the rate in Hz")
     return np.arange(n) / float(fs_hz)
 
 
@@ -117,9 +121,14 @@ def _read_csv(p: Path, fs_hz: float | None, column: str | None) -> tuple[np.ndar
     if t_col is None:
         return _uniform(values.shape[0], fs_hz, file), values
     t = data[:, t_col]
-    bad = np.flatnonzero(~(np.diff(t) > 0) | ~np.isfinite(t[1:]))
-    if bad.size or not np.isfinite(t[0]):
-        k = int(bad[0]) + 1 if bad.size else 0
+    big = np.flatnonzero(~(np.abs(t) <= MAX_TIME_S))
+    if big.size:
+        k = int(big[0])
+        raise SignalFileError(file, rows[k][0], f"time {float(t[k]):.10g} s is not a finite time "
+                              f"within ±{MAX_TIME_S:g} s")
+    bad = np.flatnonzero(~(np.diff(t) > 0))
+    if bad.size:
+        k = int(bad[0]) + 1
         raise SignalFileError(file, rows[k][0], f"time {float(t[k]):.10g} does not increase strictly "
                               "(sort the file or drop duplicate rows)")
     return t, values
@@ -148,8 +157,9 @@ def _read_npy(p: Path, fs_hz: float | None) -> tuple[np.ndarray, np.ndarray]:
         return _uniform(a.shape[0], fs_hz, file), a
     if a.ndim == 2 and a.shape[1] == 2:
         t = a[:, 0]
-        if not (np.all(np.isfinite(t)) and np.all(np.diff(t) > 0)):
-            raise SignalFileError(file, 0, "column 0 (time [s]) must be finite and increase strictly")
+        if not (np.all(np.abs(t) <= MAX_TIME_S) and np.all(np.diff(t) > 0)):
+            raise SignalFileError(file, 0, "column 0 (time [s]) must be finite, within "
+                                  f"±{MAX_TIME_S:g} s and increase strictly")
         return t, a[:, 1]
     raise SignalFileError(file, 0, f"shape {a.shape}: need (n,) with a sample rate (fs_hz), or "
                           "(n, 2) = [t_s, value]")

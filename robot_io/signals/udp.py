@@ -89,7 +89,8 @@ def parse_samples(data: bytes) -> tuple[int, float, float, np.ndarray] | None:
     if (magic != MAGIC or not 1 <= count <= MAX_SAMPLES or len(data) != HEADER.size + 4 * count
             or not (math.isfinite(fs) and fs > 0) or not math.isfinite(t0)):
         return None
-    values = np.frombuffer(data, dtype="<f4", count=count, offset=HEADER.size).astype(float)
+    with np.errstate(invalid="ignore"):  # a signalling NaN stays a NaN: the supervisor refuses it
+        values = np.frombuffer(data, dtype="<f4", count=count, offset=HEADER.size).astype(float)
     return seq, t0, fs, values
 
 
