@@ -245,7 +245,8 @@ def test_rsi_sim_survives_replies_in_an_unknown_encoding():
         assert sim.wait(WAIT_S)
         assert sim.status == "done"
     st = sim.stats
-    assert (st.cycles, st.malformed, st.replies, st.late) == (20, 2, 18, 2)
+    # the two replies it cannot read count as late; on a loaded machine another may be late too
+    assert (st.cycles, st.malformed) == (20, 2) and st.replies + st.late == 20 and st.late >= 2
 
 
 def test_rsi_sim_status_says_when_its_thread_died(monkeypatch, caplog):
@@ -502,3 +503,49 @@ def test_udp_a_signalling_nan_sample_is_a_nan_not_a_warning(recwarn):
     assert (seq, t0, fs) == (7, 0.0, 1000.0)
     assert values[0] == 1.0 and math.isnan(values[1]) and values[2] == 2.0
     assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
+_KRL_LONG_LOOP = """DEF fuzz( )
+$VEL.CP=0.001
+PTP {X 0,Y 0,Z 10,A 0,B 90,C 0}
+LIN {B 0,Z 0}
+DECL INT I
+FOR I = 1 TO 100000
+CIRC {A 555,X -14001},{X 0.5}
+$BASE = {FRAME: X 0,Y 0,Z 0,A 0,B 0.0,C 0}
+END
+"""
+
+
+def test_krl_a_short_program_cannot_run_a_long_loop(tmp_path):
+    """Fuzz finding (krl, 39 inputs): a 13-line program whose unclosed FOR ran 100,000 times a
+    motion the lenient reader skips took 7 s (each run re-parses the statement). The work a
+    reading may do now grows with what it read (EXECUTED_PER_LINE per line, at least
+    EXECUTED_FLOOR): refused with the reason, in well under the 2 s bound."""
+    from robot_io.krl._interp import EXECUTED_FLOOR
+    from robot_io.readers import read_toolpath
+
+    path = tmp_path / "fuzz.src"
+    path.write_text(_KRL_LONG_LOOP)
+    t0 = time.perf_counter()
+    with pytest.raises(ToolpathError, match=rf"more than {EXECUTED_FLOOR} statements executed "
+                                            r"for \d+ lines read"):
+        read_toolpath(path, strict=False)
+    assert time.perf_counter() - t0 < 2.0
+
+
+def test_krl_a_loop_over_a_long_dat_array_still_reads(tmp_path):
+    """The budget grows with the program: a FOR loop over a 30,000-point .dat array (one move a
+    point, as some converters write) is read whole."""
+    from robot_io.readers import read_toolpath
+
+    n = 30_000
+    (tmp_path / "arr.dat").write_text(
+        "DEFDAT arr\nDECL E6POS P[30000]\n"
+        + "".join(f"P[{i}]={{X {i * 0.1:.1f},Y 0,Z 0,A 0,B 90,C 0}}\n" for i in range(1, n + 1))
+        + "ENDDAT\n")
+    (tmp_path / "arr.src").write_text(
+        "DEF arr( )\nDECL INT I\n$VEL.CP=0.01\nPTP {X 0,Y 0,Z 10,A 0,B 90,C 0}\n"
+        f"FOR I = 1 TO {n}\nLIN P[I]\nENDFOR\nEND\n")
+    tp = read_toolpath(tmp_path / "arr.src", strict=False)
+    assert len(tp.moves) >= n

@@ -44,6 +44,8 @@ from robot_io.options import fix, without_lenient_hint
 from robot_io.toolpath import SourceRef, Toolpath, ToolpathError, ToolpathWarning
 
 __all__ = [
+    "EXECUTED_FLOOR",
+    "EXECUTED_PER_LINE",
     "MAX_CALL_DEPTH",
     "MAX_EXECUTED_STATEMENTS",
     "MAX_WARNINGS_PER_CATEGORY",
@@ -56,6 +58,14 @@ MAX_CALL_DEPTH = 64
 #: could otherwise run for ever); a 2 500-line page run 2 000 times is 5 M, and so is a FOR loop
 #: of 1 M points (``robot_io.krl._loops.MAX_UNROLLED_MOVES``) with five statements per point.
 MAX_EXECUTED_STATEMENTS = 5_000_000
+#: Below that, the work a reading may do grows with what it read: at most
+#: ``EXECUTED_PER_LINE`` statements per line of the .src and .dat files read, and never fewer than
+#: ``EXECUTED_FLOOR`` (about 0.7 s of interpretation). A converter's FOR loop over a 28,000-point
+#: .dat array runs one statement per point, far inside; a 300-byte program whose loop runs a
+#: hundred thousand times (the fuzz campaign's 7 s input) is stopped with the reason, as the
+#: G-code reader stops O-word loops (``MAX_FLOW_LINES``).
+EXECUTED_PER_LINE = 20
+EXECUTED_FLOOR = 20_000
 #: Warnings kept per category; further ones are only counted (``meta["warning_counts"]``).
 MAX_WARNINGS_PER_CATEGORY = 50
 
@@ -277,10 +287,16 @@ class Runner:
         while i < stop:
             st = body[i]
             self.executed += 1
-            if self.executed > MAX_EXECUTED_STATEMENTS:
-                raise _Problem(st.file, st.line, 0, f"more than {MAX_EXECUTED_STATEMENTS} "
-                               "statements executed: the sub-module calls or loops do not end "
-                               "(check the page calls and the loop bounds)", "limit", True)
+            if self.executed > EXECUTED_FLOOR and self.executed > min(
+                    MAX_EXECUTED_STATEMENTS, EXECUTED_PER_LINE * self.meta["lines"]):
+                budget = max(EXECUTED_FLOOR, min(MAX_EXECUTED_STATEMENTS,
+                                                 EXECUTED_PER_LINE * self.meta["lines"]))
+                raise _Problem(st.file, st.line, 0, f"more than {budget} statements executed "
+                               f"for {self.meta['lines']} lines read (EXECUTED_PER_LINE = "
+                               f"{EXECUTED_PER_LINE}, at least {EXECUTED_FLOOR}, at most "
+                               f"{MAX_EXECUTED_STATEMENTS}): the sub-module calls or loops run "
+                               "far longer than the program is (check the page calls and the "
+                               "loop bounds)", "limit", True)
             try:
                 nxt = self.execute(ctx, st, i)
             except LineError as e:
