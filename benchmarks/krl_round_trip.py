@@ -73,8 +73,18 @@ def measure(name: str, spec, sections, moves, notes=(), samples_mm=None, sample_
                   for g, w in zip(tp.moves, cart, strict=True))
     ang_err = max(_angle_deg(g.extra["abc_deg"], w.target[3:])
                   for g, w in zip(tp.moves, cart, strict=True))
-    feeds_exact = all(g.feed == float(decl[names[w.section]]) == sections[w.section].feed_m_s
-                      for g, w in zip(tp.moves, cart, strict=True))
+    # each move at its section's .dat value, times the last scale written in the section (a
+    # feed profile: $VEL.CP = NAME_Fnnn * scale), as the controller computes it
+    expect, scale, sec = [], 1.0, -1
+    for w in cart:
+        if w.section != sec:
+            sec, scale = w.section, 1.0
+        if w.feed_scale is not None:
+            scale = w.feed_scale
+        base = float(decl[names[w.section]])
+        expect.append(base * scale if scale != 1.0 else base)
+    feeds_exact = (all(g.feed == e for g, e in zip(tp.moves, expect, strict=True))
+                   and all(float(decl[names[k]]) == s.feed_m_s for k, s in enumerate(sections)))
     absorbed = 0.0
     if samples_mm is not None:
         prev = -1

@@ -18,6 +18,14 @@
   the planning wall time, agreement, a_p in the Fusion 360 program's helical bores);
 - ``feed_intent.py``: what the programmed-feed rules change on the demo (round one's air/plunge
   rule as the baseline, then air as programmed, the tool's chip load, the CAM-feed factor);
+- ``posture.py`` (run by ``plan_speed.py``): the rotation about the tool axis chosen along the
+  path on the demo and the off-axis cell, and the compensation-aware deflection tolerance;
+- ``detector_speed.py``: chatter detection delay in chatter periods and false alarms per hour of
+  simulated stable cutting, the thesis's DWT against the IIR band-pass;
+- ``compensation.py``: wall error of a simulated cut without compensation, with the offline mirror,
+  with online RKorr and with both, and the RKorr step's cost;
+- ``calibration.py``: cutting coefficients, stiffness scale and a stability boundary fitted from
+  test cuts run in a simulated true cell whose hidden parameters differ from the nominal ones;
 - ``placement.py``: a placement study of the demo serial against a LocalCluster of 2 workers,
   per-placement cost, scheduler overhead per task, the screen's pruning, best vs own ``$BASE``
   (and the sizing estimate of ``docs/placement.md``, its marked block).
@@ -124,6 +132,18 @@ the share is of the whole `plan_job` wall time of the same job. See
 The baseline is round one's rule for the moves that do not cut (air at `feed_max`, a plunge's feed
 over its whole air run), emulated on this run's plan and re-timed; then each round-two rule in
 turn. Every plan passes the independent checker. See [Feed planning](planner.md).""",
+    "detector": """\
+How soon each chatter detector sees growing chatter, in periods of the chatter frequency (a 10–20
+Hz band cannot be resolved in the thesis's "≈ 5 ms"), and how often it cries wolf in an hour of
+simulated stable cutting with feed steps and entries and exits, at the same false-alarm rate α_f.""",
+    "compensation": """\
+Deflection compensation on a simulated wall whose true arm is 20 % softer than the model and whose
+stock differs from the plan by ±1 mm: the offline mirror (`export --compensate-deflection`), online
+RKorr through RSI, both, and the bound any feed-forward correction with that stiffness error has.""",
+    "calibration": """\
+The model learning from the cell's own cuts: a simulated true cell (joint stiffness ×0.7,
+coefficients +15 %, process gain ×1.3, regeneration on) runs test passes with realistic force
+noise; the fits recover what they can and say, with intervals, what the data cannot pin down.""",
     "placement": """\
 The baseline is the same placement study run serially in this process; the LocalCluster's workers
 are warmed up first (one plan each) and its results must equal the serial ones row for row before
@@ -214,7 +234,7 @@ def planner_rows(plans: dict) -> list[tuple[str, str, str, str]]:
         ("planner: independent check of every plan (every sample)",
          "0 violations" if t["every_plan_checked_ok"] else "violations found",
          "none", _verdict(t["every_plan_checked_ok"])),
-    ]
+    ] + (_module("posture").summary_rows(plans["cells"]) if "cells" in plans else [])
 
 
 def engagement_rows(r: dict) -> list[tuple[str, str, str, str]]:
@@ -395,22 +415,36 @@ def main(argv: list[str] | None = None) -> tuple[str, bool]:
 
     krl = Step("krl", "KRL export round trip (`benchmarks/krl_round_trip.py`)").run(
         log, krl_run, lambda r: r[1], lambda r: krl_rows_summary(r[0]))
+    detector = Step("detector", "Chatter detectors (`benchmarks/detector_speed.py`)").run(
+        log, lambda: _module("detector_speed").run(log=log),
+        lambda r: _module("detector_speed").markdown(r),
+        lambda r: _module("detector_speed").summary_rows(r))
+    compensation = Step("compensation", "Online deflection compensation "
+                        "(`benchmarks/compensation.py`)").run(
+        log, lambda: _module("compensation").run(log=log),
+        lambda r: _module("compensation").markdown(r),
+        lambda r: _module("compensation").summary_rows(r))
+    calibration = Step("calibration", "Calibration from cuts on a simulated truth "
+                       "(`benchmarks/calibration.py`)").run(
+        log, lambda: _module("calibration").run(log=log),
+        lambda r: _module("calibration").markdown(r),
+        lambda r: _module("calibration").summary_rows(r))
     placement = Step("placement", "Placement studies on Dask (`benchmarks/placement.py`)").run(
         log, lambda: _module("placement").run(log),
         lambda r: _module("placement").markdown(r), placement_rows)
 
     # Summary order: throughput, thesis figures, links, toolpath, engagement, planner, feed intent,
-    # KRL, supervisor, dynamics.
+    # KRL, supervisor, detectors, compensation, dynamics, placement.
     steps = [throughput_step, figures, links, toolpath, engagement, planner, intent, krl,
-             supervisor, dynamics, placement]
+             supervisor, detector, compensation, dynamics, calibration, placement]
     failed = [st for st in steps if st.error is not None]
     rows = [row for st in steps for row in st.rows]
     rows += [(f"{st.title}", "failed: see its section", "—", "not run") for st in failed]
     machine = machine_line(throughput_step.result) if throughput_step.error is None else None
     table = summary_table(rows, machine)
     total = f"_Total wall time {time.perf_counter() - t0:.0f} s._"
-    sections = [throughput_step, toolpath, engagement, links, supervisor, dynamics, planner,
-                intent, krl, placement]
+    sections = [throughput_step, toolpath, engagement, links, supervisor, detector, compensation,
+                dynamics, calibration, planner, intent, krl, placement]
     doc = "\n\n".join([
         "# cctmill benchmarks",
         "## Summary", table,

@@ -33,8 +33,8 @@ import casadi as ca
 import numpy as np
 import scipy.optimize
 
-from models import cutting
-from models.analysis import ModelParameters, path_inputs, point_function
+from models import cutting, stiffness
+from models.analysis import N_PARAMS, PARAM_LAYOUT, ModelParameters, path_inputs, point_function
 from models.errors import CctmillError, InputError
 from models.robot import Robot
 
@@ -43,8 +43,10 @@ __all__ = [
     "Compensation",
     "PathDeflection",
     "compensate",
+    "deflection_of_force",
     "estimate_radial_depth",
     "inplane_force_angle",
+    "inplane_force_angles",
     "path_deflection",
 ]
 
@@ -77,6 +79,29 @@ def _material_side(cuts: np.ndarray) -> np.ndarray:
     """+1 where the material lies on +X_o (up, slot), −1 (down), per cut vector row."""
     mode = cuts[:, 8]
     return np.where(np.isclose(mode, cutting.MILLING_MODES["down"]), -1.0, 1.0)
+
+
+@cache
+def _deflection_of_force(robot: Robot) -> ca.Function:
+    sym = robot.symbolic
+    f = ca.SX.sym("f", 3)
+    params = ca.SX.sym("params", N_PARAMS)
+    k_theta = params[PARAM_LAYOUT["joint_stiffness"][0]:PARAM_LAYOUT["joint_stiffness"][0] + 6]
+    cct = params[PARAM_LAYOUT["cct"][0]]
+    t0 = PARAM_LAYOUT["tcp"][0]
+    jac = ca.substitute(sym.jacobian, sym.tcp, params[t0:t0 + 3])
+    k_c = stiffness.cct_term(jac[0:3, :], sym.q, f) * cct
+    c_tt = stiffness.translational_compliance(jac, k_theta, k_c)
+    return ca.Function("deflection_of_force", [sym.q, f, params], [c_tt @ f, c_tt],
+                       ["q", "f", "params"], ["delta", "compliance"])
+
+
+def deflection_of_force(robot: Robot) -> ca.Function:
+    """``(q [rad] (n,), f [N] (3,), params (23,)) -> (δ [m] (3,), C_tt [m/N] (3, 3))``: the static
+    deflection δ = C_tt(q, f)·f under a *given* force on the tool (base axes, at the TCP; CCT when
+    the ``cct`` parameter is 1), the same compliance as the point model's ``deflection`` output.
+    The online compensation calls it with the measured or estimated force; built once per robot."""
+    return _deflection_of_force(robot)
 
 
 def path_deflection(robot: Robot, params: ModelParameters, q: np.ndarray, cuts: np.ndarray,
@@ -203,6 +228,15 @@ def inplane_force_angle(a_e: float, c: float, mode: str, flutes: int, radius: fl
     if mode not in cutting.MILLING_MODES:
         raise InputError("mode", f"unknown milling mode {mode!r}")
     return float(_angles(np.array([a_e]), c, mode, flutes, radius, coefficients)[0])
+
+
+def inplane_force_angles(a_e: np.ndarray, c: float, mode: str, flutes: int, radius: float,
+                         coefficients) -> np.ndarray:
+    """θ(a_e) = atan2(F̄_zo, F̄_xo) [rad] over radial depths ``a_e`` [m], shape (k,): the table an
+    online estimate interpolates (one mapped call)."""
+    if mode not in cutting.MILLING_MODES:
+        raise InputError("mode", f"unknown milling mode {mode!r}")
+    return _angles(np.asarray(a_e, float), c, mode, flutes, radius, coefficients)
 
 
 def estimate_radial_depth(force_mean_o: np.ndarray, c: float, mode: str, flutes: int,

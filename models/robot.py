@@ -27,11 +27,13 @@ from models.errors import DataFileError, InputError, UnknownDataError, Unreachab
 
 __all__ = [
     "DEFAULT_ROBOT",
+    "DEFAULT_VENDOR",
     "Robot",
     "RobotData",
     "SymbolicKinematics",
     "available_robots",
     "load_robot",
+    "robot_data",
 ]
 
 DEFAULT_ROBOT = "kr210_r2700_extra"
@@ -41,6 +43,9 @@ DEFAULT_ROBOT = "kr210_r2700_extra"
 LIMIT_AGREEMENT_TOL = 1e-6
 
 _DATA = "data/robots"
+
+#: The controller maker of a robot data file that does not name one.
+DEFAULT_VENDOR = "kuka"
 
 
 @dataclass(frozen=True)
@@ -57,6 +62,11 @@ class RobotData:
         acceleration: joint acceleration limits [rad/s²], shape (n,).
         spindle_mass: default spindle point mass [kg].
         spindle_com: default spindle centre of mass in the flange frame [m], shape (3,).
+        vendor: the controller's maker, lower case (``"kuka"``, ``"abb"``, …); the KRL export
+            writes programs for ``"kuka"`` only. A data file without ``vendor`` is KUKA's.
+        description: what the robot is, in one line.
+        sources: where each group of values comes from (keys such as ``kinematics``,
+            ``joint_stiffness``, ``limits``, ``inertia``; values one line each).
     """
 
     name: str
@@ -69,6 +79,9 @@ class RobotData:
     acceleration: np.ndarray
     spindle_mass: float
     spindle_com: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    vendor: str = DEFAULT_VENDOR
+    description: str = ""
+    sources: dict[str, str] = field(default_factory=dict)
 
 
 def available_robots() -> list[str]:
@@ -89,6 +102,23 @@ def _vector(doc: dict, key: str, n: int, path: str) -> np.ndarray:
     return v
 
 
+def _text_table(doc: dict, key: str, path: str) -> dict[str, str]:
+    table = doc.get(key, {})
+    if not isinstance(table, dict) or not all(isinstance(v, str) for v in table.values()):
+        raise DataFileError(path, f"[{key}] must be a table of strings")
+    return dict(table)
+
+
+def robot_data(name: str) -> RobotData:
+    """The data file of a shipped robot, read without building its model (no URDF parse).
+
+    Raises:
+        UnknownDataError: no such robot (the message lists the available ones).
+        DataFileError: the file is malformed.
+    """
+    return _read_robot_data(name)
+
+
 def _read_robot_data(name: str) -> RobotData:
     if name not in available_robots():
         raise UnknownDataError("robot", name, available_robots())
@@ -102,10 +132,16 @@ def _read_robot_data(name: str) -> RobotData:
         limits = doc["limits"]
         spindle = doc.get("spindle", {})
         urdf = Path(str(folder.joinpath(doc["urdf"])))
+        vendor = doc.get("vendor", DEFAULT_VENDOR)
+        description = doc.get("description", "")
     except tomllib.TOMLDecodeError as e:
         raise DataFileError(path, f"not valid TOML: {e}") from e
     except KeyError as e:
         raise DataFileError(path, f"missing key {e}") from e
+    if not isinstance(vendor, str) or not vendor or vendor != vendor.lower():
+        raise DataFileError(path, f"vendor must be a lower-case name such as 'kuka', got {vendor!r}")
+    if not isinstance(description, str):
+        raise DataFileError(path, f"description must be a string, got {description!r}")
     return RobotData(
         name=name,
         urdf_path=urdf,
@@ -117,6 +153,9 @@ def _read_robot_data(name: str) -> RobotData:
         acceleration=_vector(limits, "acceleration_rad_s2", n, path),
         spindle_mass=float(spindle.get("mass_kg", 0.0)),
         spindle_com=np.array([float(spindle.get("com_x_m", 0.0)), 0.0, 0.0]),
+        vendor=vendor,
+        description=description,
+        sources=_text_table(doc, "sources", path),
     )
 
 

@@ -24,6 +24,7 @@ from typing import Any
 #: of the package (the plan file, the supervisor) does not load the rest.
 _EXPORTS: dict[str, tuple[str, ...]] = {
     "planner._atomic": ("OutputError",),
+    "planner.calibrate": ("FitRefused", "RecordError"),
     "planner.check": ("CheckReport", "check_plan", "check_result"),
     "planner.demo": ("DemoError", "run_demo"),
     "planner.export": ("ExportError", "export_plan", "plan_to_krl"),

@@ -21,13 +21,13 @@ assumption unseen.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
 
 from models.analysis import Cut, ModelParameters, point_function
-from models.cutting import MILLING_MODES, load_material
+from models.cutting import MILLING_MODES
 from models.errors import InputError
 from planner._progress import bar
 from planner.job import Job
@@ -38,6 +38,7 @@ __all__ = [
     "CEILING_RTOL",
     "CONSTRAINTS",
     "FEED_GRID",
+    "HALVING_AFTER",
     "MAX_REFINE_STEPS",
     "Ceilings",
     "Evaluation",
@@ -55,9 +56,13 @@ FEED_GRID = 5
 #: Relative width of the final bracket [-]: the ceiling is its feasible end, at most 0.1 % below
 #: the true edge.
 CEILING_RTOL = 1e-3
-#: Regula-falsi steps before a bracket is closed by halving alone (slacks are smooth in log-feed:
-#: 3–5 steps close it; this bound only guards a pathological sample).
+#: Refinement steps at most (slacks are smooth in log-feed: 3–5 regula-falsi steps close a
+#: bracket; this bound only guards a pathological sample).
 MAX_REFINE_STEPS = 40
+#: Regula-falsi steps before every other step halves the bracket instead: a steep slack makes
+#: regula falsi crawl along the feasible end, halving closes the grid's 3× bracket to
+#: CEILING_RTOL in 2 × 11 more steps, inside MAX_REFINE_STEPS.
+HALVING_AFTER = 6
 #: Scale of the chatter margin's slack [N/m] (only its sign matters for the ceiling; the scale
 #: makes the interpolation well conditioned next to the force/deflection/power ratios).
 MARGIN_SCALE = 1e5
@@ -82,6 +87,16 @@ def engaged_samples(s: np.ndarray, engaged: np.ndarray) -> np.ndarray:
     return out
 
 
+def _previous_engaged(index: np.ndarray) -> np.ndarray:
+    """Per engaged sample (path indices ``index``, sorted), the position of the path sample just
+    before it among the engaged ones, or −1 when that sample does not cut."""
+    out = np.full(index.size, -1)
+    if index.size > 1:
+        follows = np.flatnonzero(np.diff(index) == 1) + 1
+        out[follows] = follows - 1
+    return out
+
+
 def model_parameters(job: Job, prep: Prepared) -> ModelParameters:
     """The point-model parameters a job asks for (robot data, material, calibration knobs)."""
     robot = prep.robot
@@ -89,7 +104,7 @@ def model_parameters(job: Job, prep: Prepared) -> ModelParameters:
     si = job.to_si()
     return ModelParameters(
         joint_stiffness=robot.data.joint_stiffness * job.cell.joint_stiffness_scale,
-        coefficients=load_material(job.material).coefficients(), cct=job.model.cct,
+        coefficients=job.material_coefficients(), cct=job.model.cct,
         process_gain=job.model.process_gain, tcp=si.tcp, gamma_window=si.gamma_window,
         spindle_mass=robot.data.spindle_mass if spindle.mass_kg is None else spindle.mass_kg,
         spindle_com=robot.data.spindle_com if si.spindle_com is None else si.spindle_com)
@@ -117,6 +132,12 @@ class Evaluation:
         slack: per constraint, a continuous measure that is ≤ 0 exactly where ``ok`` holds
             (value / limit − 1 for force, deflection and power; the margin's shortfall for
             chatter), (m, 4).
+        deflection_change: |δ_i − δ_(i−1)| at the same feed, the change of δ along the LIN
+            that ends at the sample [m], (m,) (zero where the sample before does not cut; filled
+            only when the limits compensate the deflection, else empty).
+        deflection_held: what the deflection tolerance held [m], (m,):
+            :meth:`planner.limits.Limits.deflection_held` — ‖δ‖ uncompensated, u·‖δ‖ + the
+            change compensated (empty from evaluations made without it).
     """
 
     feed: np.ndarray
@@ -133,6 +154,8 @@ class Evaluation:
     natural_frequencies: np.ndarray
     ok: np.ndarray
     slack: np.ndarray
+    deflection_change: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    deflection_held: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def all_ok(self) -> np.ndarray:
@@ -199,7 +222,17 @@ class PathModel:
         self.cut = np.vstack([feed_dir[i].T, e.radial_dir[i].T, e.a_e[i], e.a_p[i],
                               e.mode[i].astype(float), np.full(m, self.spindle_speed),
                               np.full(m, float(tool.flutes)), np.full(m, tool.radius)])
+        #: per engaged sample, the margin ``[model] chatter_probability_max`` needs by the job's
+        #: calibrated boundary (criterion's unit; None: no probability asked for), (m,).
+        self.margin_floor: np.ndarray | None = None
+        if job.model.chatter_probability_max is not None:   # scipy.stats only when asked for
+            from planner.calibrate.fit_boundary import margin_floors
+
+            self.margin_floor = margin_floors(job, e.a_p[i], self.spindle_speed)
         self.q = prep.kinematics.q[i].T
+        #: per engaged sample, the engaged sample just before it on the path (−1: none), whose δ
+        #: a compensated path cannot follow inside the LIN between them.
+        self.previous = _previous_engaged(i)
         self.function = point_function(prep.robot, self.process_model, self.mass_model, _OUTPUTS)
         self._param_vec = self.params.vector()
         self._maps: dict[int, ca.Function] = {}
@@ -245,25 +278,31 @@ class PathModel:
         gamma_margin = r["gamma_margin"].reshape(n)
         if self.criterion == "floquet":
             rho = self.floquet_radius()[sel]
-            stable = rho < 1.0
+            need = 0.0 if self.margin_floor is None else np.maximum(self.margin_floor[sel], 0.0)
+            stable = rho < 1.0 - need
             chatter_ok = stable
-            chatter_slack = np.where(stable, rho - 1.0, np.maximum(rho - 1.0, 1e-12))
+            chatter_slack = np.where(stable, rho - 1.0 + need, np.maximum(rho - 1.0 + need, 1e-12))
         elif self.criterion == "gamma_window":
             stable = gamma_margin > 0.0
             chatter_ok = stable
             chatter_slack = np.where(stable, -gamma_margin, np.maximum(-gamma_margin, 1e-12))
         else:
             stable = r["stable"].reshape(n) > 0.5
-            chatter_ok = stable & (margin >= self.limits.margin_min)
-            short = (self.limits.margin_min - margin) / MARGIN_SCALE
+            floor = (self.limits.margin_min if self.margin_floor is None
+                     else np.maximum(self.limits.margin_min, self.margin_floor[sel]))
+            chatter_ok = stable & (margin >= floor)
+            short = (floor - margin) / MARGIN_SCALE
             chatter_slack = np.where(chatter_ok, np.minimum(short, 0.0), np.maximum(short, 1e-12))
         power = r["power"].reshape(n)
         dnorm = np.linalg.norm(defl, axis=1)
         lim = self.limits
-        ok = np.column_stack([chatter_ok, force <= lim.force_max, dnorm <= lim.deflection_tol,
+        change = (self._deflection_change(defl, feeds, sel) if lim.compensate_deflection
+                  else np.zeros(0))
+        held = lim.deflection_held(dnorm, change)
+        ok = np.column_stack([chatter_ok, force <= lim.force_max, held <= lim.deflection_tol,
                               power <= lim.power_max])
         slack = np.column_stack([chatter_slack, force / lim.force_max - 1.0,
-                                 dnorm / lim.deflection_tol - 1.0, power / lim.power_max - 1.0])
+                                 held / lim.deflection_tol - 1.0, power / lim.power_max - 1.0])
         if self.mass_model == "robot":
             freqs = np.sqrt(np.maximum(r["omega2"].reshape(2, n).T, 0.0)) / (2.0 * np.pi)
         else:
@@ -272,10 +311,32 @@ class PathModel:
             feed=feeds, force=force, force_base=r["force_base"].reshape(3, n).T, deflection=defl,
             deflection_norm=dnorm, deflection_normal=np.einsum("ij,ij->i", defl, self.radial_dir[sel]),
             gamma=r["gamma"].reshape(n), margin=margin, gamma_margin=gamma_margin, stable=stable,
-            power=power, natural_frequencies=freqs, ok=ok, slack=slack)
+            power=power, natural_frequencies=freqs, ok=ok, slack=slack,
+            deflection_change=change, deflection_held=held)
 
-    def ceilings(self) -> Ceilings:
-        """The feed ceiling of every engaged sample (module docstring)."""
+    def _deflection_change(self, defl: np.ndarray, feeds: np.ndarray,
+                           sel: np.ndarray) -> np.ndarray:
+        """|δ_i − δ_(i−1)| [m], (k,): δ of the engaged sample before each of ``sel`` at the same
+        feed (one more mapped evaluation of those samples); zero where there is none."""
+        prev = self.previous[sel]
+        has = np.flatnonzero(prev >= 0)
+        out = np.zeros(sel.size)
+        if has.size == 0:
+            return out
+        j = prev[has]
+        res = self._mapped(has.size)(q=self.q[:, j], cut=self.cut[:, j],
+                                     feed=feeds[has].reshape(1, -1), params=self._param_vec)
+        d_prev = np.asarray(res["deflection"], float).reshape(3, has.size).T
+        out[has] = np.linalg.norm(defl[has] - d_prev, axis=1)
+        return out
+
+    def ceilings(self, rtol: float = CEILING_RTOL) -> Ceilings:
+        """The feed ceiling of every engaged sample (module docstring).
+
+        Args:
+            rtol: relative width of the final bracket (default :data:`CEILING_RTOL`; the posture
+                search, :mod:`planner.posture`, compares poses with a coarser one).
+        """
         lim = self.limits
         m = len(self)
         start = self.evaluations
@@ -307,7 +368,7 @@ class PathModel:
             j = first_bad[refine]
             feed[refine], why = self._refine(refine, grid[j - 1], grid[j],
                                              g_grid[refine, j - 1], g_grid[refine, j],
-                                             why_grid[refine, j])
+                                             why_grid[refine, j], rtol)
             for k, w in zip(refine, why, strict=True):
                 binding[k] = CONSTRAINTS[int(w)]
         self._bar.close()
@@ -342,27 +403,31 @@ class PathModel:
                    radius=float(v[11]))
 
     def _refine(self, idx: np.ndarray, f_lo: np.ndarray, f_hi: np.ndarray, g_lo: np.ndarray,
-                g_hi: np.ndarray, why: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                g_hi: np.ndarray, why: np.ndarray,
+                rtol: float = CEILING_RTOL) -> tuple[np.ndarray, np.ndarray]:
         """Close the brackets [f_lo (all ok), f_hi (a limit broken)] of samples ``idx``, given
         the largest slack at both ends and the constraint broken at ``f_hi``.
 
         Illinois regula falsi on g(x) = max slack, x = log f (g ≤ 0 ⇔ every limit holds); a side
         kept twice has its value halved, and no step lands within half the tolerance of an end,
-        so the bracket closes from both sides. Returns the feasible ends
+        so the bracket closes from both sides; after :data:`HALVING_AFTER` steps every other step
+        halves it (a steep slack would have regula falsi crawl). Returns the feasible ends
         and, per sample, the constraint broken at the infeasible end.
         """
         lo, hi = np.log(f_lo), np.log(f_hi)
         g_lo, g_hi, why = g_lo.copy(), g_hi.copy(), why.copy()
         side = np.zeros(idx.size, int)
-        todo = np.flatnonzero(hi - lo > np.log1p(CEILING_RTOL))
-        for _ in range(MAX_REFINE_STEPS):
+        todo = np.flatnonzero(hi - lo > np.log1p(rtol))
+        for it in range(MAX_REFINE_STEPS):
             if todo.size == 0:
                 break
             a, b, ga, gb = lo[todo], hi[todo], g_lo[todo], g_hi[todo]
             t = ga / np.minimum(ga - gb, -1e-300)
             t = np.where(np.isfinite(t), np.clip(t, 0.0, 1.0), 0.5)
+            if it >= HALVING_AFTER and it % 2 == 1:
+                t = np.full_like(t, 0.5)
             # never closer than half the tolerance to an end, so the bracket keeps closing
-            step = 0.5 * np.log1p(CEILING_RTOL)
+            step = 0.5 * np.log1p(rtol)
             x = np.clip(a + t * (b - a), a + step, b - step)
             e = self.evaluate(np.exp(x), idx[todo])
             g = np.max(e.slack, axis=1)
@@ -375,7 +440,7 @@ class PathModel:
             why[j_bad] = np.argmax(e.slack[~good], axis=1)
             g_lo[j_bad] *= np.where(side[j_bad] == -1, 0.5, 1.0)
             side[j_bad] = -1
-            todo = todo[hi[todo] - lo[todo] > np.log1p(CEILING_RTOL)]
+            todo = todo[hi[todo] - lo[todo] > np.log1p(rtol)]
         return np.exp(lo), why
 
     def mode_name(self, k: int) -> str:

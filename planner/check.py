@@ -5,11 +5,20 @@ feed ceilings. This checker does neither: for every ``cut`` sample it calls the 
 model (:meth:`models.point.PointModel.analyze`: one pose, its own joint-limit and singularity
 checks) at the *planned* feed of that sample, and computes the spindle power by integrating the
 instantaneous tangential edge force over the engaged arc numerically (not the closed form the
-planner uses). It then checks the plan's own bookkeeping: feeds inside the bounds, no cut faster
+planner uses); with the compensation-aware tolerance (``compensate_deflection``) it holds
+u·|δ| + |δ_k − δ_(k−1)| (:meth:`planner.limits.Limits.deflection_held`), recomputing δ of the
+previous sample at this sample's feed. A posture chosen along the path is measured from the joints
+(continuity, wrist, limits, rate; :func:`planner.posture.check_posture`). It then checks the
+plan's own bookkeeping: feeds inside the bounds, no cut faster
 than its programmed feed × ``cam_feed_scale_max`` and no air move faster than programmed or than
 the rapid speed, neighbouring cut sections within the feed-change bound, sections no shorter than
 the minimum (unless their whole run is) and never empty, and the timed path speed never above the
-planned feed.
+planned feed. The timed speed itself is checked against the path acceleration and the joints'
+speed and acceleration limits, and a feed profile's also against the path jerk
+(:mod:`planner.check_profile`). In a feed profile the feed varies inside a section: its samples'
+feeds, not the section's, are held to the programmed feed caps, and the feed-change bound between
+sections (a section plan's steps) does not apply — the profile's changes are bounded by the path
+acceleration and jerk.
 """
 
 from __future__ import annotations
@@ -22,6 +31,7 @@ from models.analysis import Cut
 from models.cutting import edge_forces, immersion_angles
 from models.point import PointModel
 from planner.ceilings import model_parameters
+from planner.check_profile import dynamics_violations
 from planner.limits import Limits
 from planner.prepare import Prepared
 from planner.sections import CUT, RAPID, kind_runs, step_lengths
@@ -87,7 +97,8 @@ def _power(cut: Cut, feed: float, coeffs: np.ndarray) -> float:
 
 
 def check_plan(prep: Prepared, feed: np.ndarray, kinds: np.ndarray, speed: np.ndarray | None,
-               sections: list[tuple[int, int, int, float]], limits: Limits) -> CheckReport:
+               sections: list[tuple[int, int, int, float]], limits: Limits,
+               profiled: bool = False) -> CheckReport:
     """Re-evaluate a plan independently.
 
     Args:
@@ -97,6 +108,8 @@ def check_plan(prep: Prepared, feed: np.ndarray, kinds: np.ndarray, speed: np.nd
         speed: timed path speed per sample [m/s], (n,), or None.
         sections: ``(start, stop, kind, feed)`` per section, in order.
         limits: the limits to check against.
+        profiled: the plan is a feed profile (module docstring): per-sample feed caps, the path
+            jerk, no feed-change bound between sections.
     """
     job = prep.job
     params = model_parameters(job, prep)
@@ -115,15 +128,24 @@ def check_plan(prep: Prepared, feed: np.ndarray, kinds: np.ndarray, speed: np.nd
         if ratio > 1.0 + REL_TOL:
             viol.append(Violation(int(k), what, float(value), float(limit), path.where(k)))
 
+    def cut_at(k: int) -> Cut:
+        return Cut(feed_dir=feed_dir[k], radial_dir=e.radial_dir[k], a_e=float(e.a_e[k]),
+                   a_p=float(e.a_p[k]), mode=codes[int(e.mode[k])], spindle_speed=omega,
+                   flutes=tool.flutes, radius=tool.radius)
+
     cut_samples = np.flatnonzero(kinds == CUT)
     for k in cut_samples:
-        cut = Cut(feed_dir=feed_dir[k], radial_dir=e.radial_dir[k], a_e=float(e.a_e[k]),
-                  a_p=float(e.a_p[k]), mode=codes[int(e.mode[k])], spindle_speed=omega,
-                  flutes=tool.flutes, radius=tool.radius)
+        cut = cut_at(k)
         a = model.analyze(prep.kinematics.q[k], cut, float(feed[k]))
         add(k, "force", a.force, limits.force_max, a.force / limits.force_max)
         d = float(np.linalg.norm(a.deflection))
-        add(k, "deflection", d, limits.deflection_tol, d / limits.deflection_tol)
+        change = 0.0
+        if limits.compensate_deflection and k > 0 and kinds[k - 1] == CUT:
+            # compensated: the LIN into k moves from −δ(k−1) to −δ(k); at k's feed (limits.py)
+            prev = model.analyze(prep.kinematics.q[k - 1], cut_at(k - 1), float(feed[k]))
+            change = float(np.linalg.norm(np.asarray(a.deflection) - np.asarray(prev.deflection)))
+        held = float(limits.deflection_held(d, change))
+        add(k, "deflection", held, limits.deflection_tol, held / limits.deflection_tol)
         p = _power(cut, float(feed[k]), params.coefficients)
         add(k, "power", p, limits.power_max, p / limits.power_max)
         if model.criterion == "gamma_window":
@@ -159,17 +181,25 @@ def check_plan(prep: Prepared, feed: np.ndarray, kinds: np.ndarray, speed: np.nd
                 viol.append(Violation(a, "rapid_speed", f, limits.rapid_speed, path.where(a)))
             cap = prog[a:b]
         # a sample that adds no path (ds = 0) has no speed of its own
-        over = np.flatnonzero(np.isfinite(cap) & (f > cap * (1 + REL_TOL)) & (ds[a:b] > 0.0))
+        fs = feed[a:b] if profiled else np.full(b - a, f)
+        over = np.flatnonzero(np.isfinite(cap) & (fs > cap * (1 + REL_TOL)) & (ds[a:b] > 0.0))
         if over.size:
             k = a + int(over[0])
-            viol.append(Violation(k, "cam_feed", f, float(cap[over[0]]), path.where(k)))
+            viol.append(Violation(k, "cam_feed", float(fs[over[0]]), float(cap[over[0]]),
+                                  path.where(k)))
+        if profiled and kind == CUT:
+            top = np.flatnonzero(feed[a:b] > limits.feed_max * (1 + REL_TOL))
+            if top.size:
+                k = a + int(top[0])
+                viol.append(Violation(k, "feed_bounds", float(feed[k]), limits.feed_max,
+                                      path.where(k)))
     runs = kind_runs(kinds)
     run_of = np.zeros(len(path), int)
     for i, (a, b, _) in enumerate(runs):
         run_of[a:b] = i
     cut_secs = [x for x in sections if x[2] == CUT]
     for (_, b0, _, f0), (a1, _, _, f1) in zip(cut_secs, cut_secs[1:], strict=False):
-        if b0 == a1 and limits.feed_change_max is not None and \
+        if b0 == a1 and not profiled and limits.feed_change_max is not None and \
                 abs(f1 - f0) > limits.feed_change_max * (1 + 1e-6) + 1e-12:
             viol.append(Violation(a1, "feed_change", abs(f1 - f0), limits.feed_change_max,
                                   path.where(a1)))
@@ -184,10 +214,39 @@ def check_plan(prep: Prepared, feed: np.ndarray, kinds: np.ndarray, speed: np.nd
         for k in over[:20]:
             viol.append(Violation(int(k), "timed_speed", float(speed[k]), float(feed[k]),
                                   path.where(k)))
+        data = prep.robot.data
+        dyn, ratios = dynamics_violations(
+            path.s, prep.kinematics.q, speed, np.asarray(data.velocity, float),
+            np.asarray(data.acceleration, float), limits.path_acc_max,
+            limits.path_jerk_max if profiled else None)
+        worst.update(ratios)
+        viol.extend(Violation(d.sample, d.constraint, d.value, d.limit, path.where(d.sample))
+                    for d in dyn)
+    viol.extend(_posture_violations(prep))
     return CheckReport(samples_checked=int(cut_samples.size), violations=viol, worst_ratio=worst)
+
+
+def _posture_violations(prep: Prepared) -> list[Violation]:
+    """A posture chosen along the path, measured from the joints themselves
+    (:func:`planner.posture.check_posture`): joint jumps, wrist flips, joint limits and the
+    rotation rate, one violation per kind (the first sample; value = samples found)."""
+    posture = getattr(prep, "posture", None)
+    if posture is None or posture.fallback:
+        return []
+    from planner.posture import check_posture
+
+    pc = check_posture(prep)
+    out = []
+    for what, ks in (("posture_jump", pc.jumps), ("posture_wrist_flip", pc.wrist_flips),
+                     ("posture_joint_limits", pc.limit_violations),
+                     ("posture_rate", pc.rate_violations)):
+        if ks:
+            out.append(Violation(int(ks[0]), what, float(len(ks)), 0.0, prep.path.where(int(ks[0]))))
+    return out
 
 
 def check_result(res) -> CheckReport:
     """:func:`check_plan` on a :class:`planner.plan.PlanResult`."""
     return check_plan(res.prep, res.feed, res.kinds, res.timing.speed,
-                      [(s.start, s.stop, s.kind, s.feed) for s in res.sections], res.limits)
+                      [(s.start, s.stop, s.kind, s.feed) for s in res.sections], res.limits,
+                      profiled=bool(getattr(res, "profiled", False)))

@@ -11,6 +11,15 @@
   then one LIN to every
   sample of the section — the first sample included, so the first LIN after the BCO PTP goes to
   where the PTP already is (a null move that fixes the Cartesian start);
+* a *feed profile* (a plan whose samples' feeds vary inside a section, ``--method optimize``):
+  the section's ``.dat`` feed is its planned feed (the section optimiser's, under every ceiling of
+  the section), and ``$VEL.CP = NAME_F003 * 1.083100`` is written
+  before a move only where the profile leaves the band of :data:`PROFILE_STEP` (2 %) above the
+  speed last written: each run of moves runs at the lowest profiled speed of the samples its
+  moves reach (their targets and, for a CIRC, the samples it absorbs), rounded down to the
+  scale's 1e-6 grid, so no sample is reached faster than planned and no move runs more than
+  :data:`PROFILE_STEP` below its samples' profile; arcs are cut into CIRCs where the profile leaves
+  that band too. Retuning a section's ``.dat`` value scales its whole profile;
 * a run of samples of one arc move inside one section (``arc`` true, same ``move``) becomes CIRC
   moves when its points lie on one circle to :data:`CIRC_FIT_TOL` and the tool axis stays within
   :data:`CIRC_AXIS_TOL_DEG` (helices, 5-axis arcs and compensated paths do not, and stay LINs —
@@ -59,10 +68,11 @@ __all__ = [
     "CIRC_FIT_TOL",
     "CIRC_MAX_SWEEP_DEG",
     "CIRC_MIN_SWEEP_DEG",
-    "ExportError",
     "FEED_RESOLUTION_M_S",
-    "KrlProgram",
+    "PROFILE_STEP",
     "RAPID_FEED_M_S",
+    "ExportError",
+    "KrlProgram",
     "export_plan",
     "krl_summary",
     "plan_to_krl",
@@ -72,6 +82,12 @@ __all__ = [
 #: written feed never exceeds the plan's; a KRL REAL (32-bit) holds about 7 significant digits,
 #: i.e. ~1e-10 m/s at 2 mm/s, so nothing the controller can use is lost.
 FEED_RESOLUTION_M_S = 1e-9
+#: A feed profile's written speed is renewed where the profile rises above (1 + this) × the
+#: speed in force or falls below it [-]: fewer ``$VEL.CP`` lines against at most this much slower
+#: moves (2 %: a new statement every few millimetres where the profile ramps).
+PROFILE_STEP = 0.02
+#: Steps of a feed scale per unit (its decimals: robot_io.krl.writer.SCALE_DECIMALS).
+_SCALE_STEPS = 10**6
 #: Path speed of rapid sections without a planned feed [m/s] (the KUKA posts' default $VEL.CP).
 RAPID_FEED_M_S = 0.2
 #: Samples of an arc run must lie this close to the fitted circle [m] to become a CIRC.
@@ -104,6 +120,8 @@ class KrlProgram:
         moves: the motions.
         notes: comment lines for every ``.src`` (compensation).
         sample_of_move: for each move, the plan sample its target is (``-1``: none).
+        move_feeds: for each move, the ``$VEL.CP`` it runs at [m/s] (its section's feed, or that
+            times its run's scale: what the KRL reader reads back, exactly).
     """
 
     spec: KrlProgramSpec
@@ -111,6 +129,7 @@ class KrlProgram:
     moves: tuple[KrlMove, ...]
     notes: tuple[str, ...]
     sample_of_move: tuple[int, ...]
+    move_feeds: tuple[float, ...] = ()
 
 
 #: Toolpath warning kinds listed in the program's comment header (the rest: plan.json).
@@ -127,6 +146,28 @@ def _feed_m_s(feed: float, kind: str) -> float:
         return v             # the writer refuses it with the section's number
     k = math.floor(Fraction(v) * _STEPS_PER_M_S)
     return k / _STEPS_PER_M_S if k > 0 else v
+
+
+def _profile_runs(need: np.ndarray, base: float) -> tuple[list[float | None], list[float]]:
+    """A section's moves' scales (``None``: keep the speed in force) and the speed each runs at
+    [m/s], for the lowest speed ``need`` [m/s] each move may run at (module docstring)."""
+    scales: list[float | None] = []
+    feeds: list[float] = []
+    i, n = 0, need.size
+    while i < n:
+        lo = hi = float(need[i])
+        j = i + 1
+        while j < n and max(hi, need[j]) <= min(lo, need[j]) * (1.0 + PROFILE_STEP):
+            lo, hi = min(lo, float(need[j])), max(hi, float(need[j]))
+            j += 1
+        k = max(1, math.floor(Fraction(lo) / Fraction(base) * _SCALE_STEPS))
+        while k > 1 and base * (k / _SCALE_STEPS) > lo:     # the double product, as read back
+            k -= 1
+        scale = k / _SCALE_STEPS
+        scales += [scale] + [None] * (j - i - 1)
+        feeds += [base * scale] * (j - i)
+        i = j
+    return scales, feeds
 
 
 def _arc_moves(p: np.ndarray, abc: np.ndarray, start: int,
@@ -171,6 +212,23 @@ def _arc_moves(p: np.ndarray, abc: np.ndarray, start: int,
     return out
 
 
+def _check_krl_robot(robot: str, where: str) -> None:
+    """Refuse a plan for a robot whose data file names a maker other than KUKA (KRL runs on KUKA
+    controllers only). A plan naming no robot, or one not shipped, is left to the writer."""
+    # here, not at the top: reading a plan and writing KRL load no physics (models.robot
+    # imports CasADi and pinocchio); robot_data itself parses only the TOML
+    from models.robot import DEFAULT_VENDOR, available_robots, robot_data
+
+    if not robot or robot not in available_robots():
+        return
+    vendor = robot_data(robot).vendor
+    if vendor != DEFAULT_VENDOR:
+        raise ExportError(f"{where}: the plan is for {robot}, whose controller is {vendor!r}, "
+                          f"not KUKA: KRL runs on KUKA controllers only and no {vendor} program "
+                          "writer ships; plan the job for a KUKA robot to export KRL (cctmill "
+                          "robots lists each robot's vendor)")
+
+
 def plan_to_krl(plan: Plan | str | os.PathLike, name: str | None = None,
                 controller: str = "krc4", compensate: bool = False,
                 override_hook: str = "none", base_index: int | None = None,
@@ -190,12 +248,19 @@ def plan_to_krl(plan: Plan | str | os.PathLike, name: str | None = None,
         advance: ``$ADVANCE``.
 
     Raises:
-        ExportError: the plan is unconverged or inconsistent; ``robot_io.krl.KrlError`` for what
-            KRL cannot hold.
+        ExportError: the plan is unconverged or inconsistent, or for a robot that is not a
+            KUKA (its data file's ``vendor``); ``robot_io.krl.KrlError`` for what KRL cannot
+            hold.
     """
     if not isinstance(plan, Plan):
         plan = load_plan(plan)
     smp, where = plan.samples, plan.label
+    _check_krl_robot(plan.robot, where)
+    if plan.limits.compensate_deflection and not compensate:
+        raise ExportError(f"{where}: the plan holds the deflection tolerance for a compensated "
+                          "path only ([export] compensate_deflection = true: u·|δ| plus the change "
+                          "of δ along a LIN); export it with --compensate-deflection, or re-plan "
+                          "without compensation")
     if plan.solver.success is False:
         raise ExportError(f"{where}: the plan's solve did not converge (status "
                           f"{plan.solver.status!r}); re-plan the job (e.g. --method thesis) — "
@@ -232,6 +297,8 @@ def plan_to_krl(plan: Plan | str | os.PathLike, name: str | None = None,
     sections: list[KrlSection] = []
     moves: list[KrlMove] = []
     sample_of: list[int] = []
+    move_feeds: list[float] = []
+    feed = np.asarray(smp.feed, float)
     expect = 0
     for k, sec in enumerate(secs):
         a, b = sec.sample_start, sec.sample_stop
@@ -252,13 +319,22 @@ def plan_to_krl(plan: Plan | str | os.PathLike, name: str | None = None,
             if v is not None and math.isfinite(v):
                 extra.append(f"{label} {v:.4g} {unit}")
         comment = "; ".join(x for x in (f"plan section {sec.number}", place, ", ".join(extra)) if x)
-        sections.append(KrlSection(_feed_m_s(sec.feed, sec.kind), sec.kind, sec.binding or "",
-                                   comment))
+        base = _feed_m_s(sec.feed, sec.kind)
+        sections.append(KrlSection(base, sec.kind, sec.binding or "", comment))
+        first = len(moves)
+        f_sec = feed[a:b]
+        profiled = bool(math.isfinite(sec.feed) and sec.feed > 0 and np.all(np.isfinite(f_sec))
+                        and np.any(f_sec != sec.feed))       # a feed profile: the speed varies
         i = a
         while i < b:
             if arc[i] and i > 0:
                 j = i
+                lo = hi = feed[i]
                 while j + 1 < b and arc[j + 1] and move_id[j + 1] == move_id[i]:
+                    if profiled:    # a CIRC runs at one speed: cut the arc where the profile moves
+                        lo, hi = min(lo, feed[j + 1]), max(hi, feed[j + 1])
+                        if hi > lo * (1.0 + PROFILE_STEP):
+                            break
                     j += 1
                 pieces = _arc_moves(pos, abc, i - 1, j)
                 if pieces is None:          # not one circle: the whole run as LINs
@@ -274,13 +350,26 @@ def plan_to_krl(plan: Plan | str | os.PathLike, name: str | None = None,
             moves.append(KrlMove("LIN", tuple(pose[i]), k))
             sample_of.append(i)
             i += 1
+        if profiled:
+            ends = sample_of[first:]
+            starts = [sample_of[first - 1] + 1 if first else 0, *(e + 1 for e in ends[:-1])]
+            need = np.array([feed[p:e + 1].min() for p, e in zip(starts, ends, strict=True)])
+            scales, feeds = _profile_runs(need, base)
+            for j, sc in enumerate(scales):
+                if sc is not None:
+                    m = moves[first + j]
+                    moves[first + j] = KrlMove(m.kind, m.target, m.section, m.aux, m.approx, sc)
+            move_feeds += feeds
+        else:
+            move_feeds += [base] * (len(moves) - first)
     if expect != n:
         raise ExportError(f"{where}: the sections end at sample {expect} of {n}")
     if moves and moves[0].kind == "CIRC":      # cannot happen: the first sample is a LIN target
         raise ExportError(f"{where}: the path starts with an arc")
     if moves:
         last = moves[-1]
-        moves[-1] = KrlMove(last.kind, last.target, last.section, last.aux, approx=False)
+        moves[-1] = KrlMove(last.kind, last.target, last.section, last.aux, approx=False,
+                            feed_scale=last.feed_scale)
     comments = [f"cctmill KRL export of job {plan.job_name} "
                 f"(plan method {plan.method}, {len(secs)} sections, {n} samples)",
                 f"plan: {where}",
@@ -297,7 +386,8 @@ def plan_to_krl(plan: Plan | str | os.PathLike, name: str | None = None,
         tool=KrlFrame(*plan.frame_mm_deg("tool")) if tool_index is None else tool_index,
         advance=advance, apo_cdis_mm=apo_cdis_mm, override_hook=override_hook,
         comments=tuple(comments))
-    return KrlProgram(spec, tuple(sections), tuple(moves), tuple(notes), tuple(sample_of))
+    return KrlProgram(spec, tuple(sections), tuple(moves), tuple(notes), tuple(sample_of),
+                      tuple(move_feeds))
 
 
 def export_plan(plan_or_path: Plan | str | os.PathLike, outdir: str | os.PathLike,

@@ -47,6 +47,7 @@ from models.robot import load_robot
 from planner.job_schema import (
     SANE_MAX,
     TABLES,
+    CalibrationSection,
     CellSection,
     EngagementSection,
     Job,
@@ -64,6 +65,7 @@ from planner.job_schema import (
 )
 
 __all__ = [
+    "CalibrationSection",
     "CellSection",
     "EngagementSection",
     "Job",
@@ -107,7 +109,7 @@ class JobError(CctmillError):
 
 #: One line per key for the generated reference (a test checks every schema field has one).
 KEY_DOCS: dict[str, str] = {
-    "material": "material data file name (shipped: al6061)",
+    "material": "material data file name (`cctmill materials` lists the shipped ones)",
     "job.name": "job name, used for output names",
     "job.toolpath": "toolpath file(s), G-code / APT-CL / KRL, relative to the job file; read in order",
     "job.strict": "stop at the first problem in a toolpath (false: collect warnings and go on)",
@@ -121,13 +123,13 @@ KEY_DOCS: dict[str, str] = {
     "job.initial_position_mm": "G-code: the tool position before the first move [mm]",
     "job.arc_radius_tol_mm": "G-code and APT/CL: allowed start/end radius mismatch of an arc [mm] "
                              "(default: the larger of 0.002 mm and 0.1 % of the radius)",
-    "cell.robot": "robot data name (URDF + TOML in models/data/robots)",
+    "cell.robot": "robot data name (URDF + TOML in models/data/robots; `cctmill robots`)",
     "cell.base_mm": "$BASE origin: the workpiece frame in the robot base [mm]",
     "cell.base_abc_deg": "$BASE orientation, KUKA A, B, C [deg] (R = Rz(A) Ry(B) Rx(C))",
     "cell.tcp_mm": "$TOOL origin: the tool tip in the flange frame [mm]",
     "cell.tcp_abc_deg": "$TOOL orientation [deg]; the tool axis is the TCP's +x",
     "cell.joint_stiffness_scale": "multiplies the robot's joint stiffness (calibration)",
-    "tool.name": "tool data file name (shipped: em25_2f)",
+    "tool.name": "tool data file name (`cctmill tools` lists the library)",
     "tool.diameter_mm": "override the tool diameter [mm]",
     "tool.flutes": "override the number of flutes",
     "spindle.rpm": "spindle speed [rpm]",
@@ -183,6 +185,35 @@ KEY_DOCS: dict[str, str] = {
                                 "limits); fixed: held at tool_rotation_deg",
     "kinematics.tool_rotation_deg": "rotation about the tool axis when fixed [deg]",
     "kinematics.choose_for_stiffness": "pick the free rotation at the first sample for stiffness",
+    "model.chatter_probability_max": "largest P(chatter) a section may have by the calibrated "
+                                     "boundary (docs/calibration.md); none: not required",
+    "calibration.overlay": "overlay file from cctmill calibrate, relative to this file; its "
+                           "[cell], [model], [calibration] keys replace these",
+    "calibration.k_tc": "fitted tangential cutting coefficient [N/m²] (replaces the material's)",
+    "calibration.k_rc": "fitted radial cutting coefficient [N/m²]",
+    "calibration.k_ac": "fitted axial cutting coefficient [N/m²]",
+    "calibration.k_te": "fitted tangential edge coefficient [N/m]",
+    "calibration.k_re": "fitted radial edge coefficient [N/m]",
+    "calibration.k_ae": "fitted axial edge coefficient [N/m]",
+    "calibration.boundary_criterion": "the criterion whose margin the boundary was fitted on",
+    "calibration.boundary_features": "the boundary's features: margin, ap_mm, rpm",
+    "calibration.boundary_mean": "feature means of the boundary's standardisation",
+    "calibration.boundary_scale": "feature standard deviations of the boundary's standardisation",
+    "calibration.boundary_coef": "logistic coefficients of the standardised features",
+    "calibration.boundary_intercept": "logistic intercept: logit P(chatter) = intercept + coef·x̃",
+    "calibration.records": "the cut record files the calibration used",
+    "calibration.fitted_utc": "when the calibration was made (UTC)",
+    "calibration.report": "the fit-quality report (JSON) written beside the overlay",
+    "limits.deflection_model_uncertainty": "share of the predicted deflection the model may get "
+                                           "wrong [-]; with [export] compensate_deflection the "
+                                           "tolerance holds this share of ‖δ‖ plus the change of "
+                                           "δ along each LIN (docs/posture.md)",
+    "export.compensate_deflection": "the KRL export will move the path by -δ (export "
+                                    "--compensate-deflection): plan for what compensation leaves",
+    "kinematics.posture": "first_sample: the free rotation is chosen at the first sample only; "
+                          "path: along the whole path for the feed ceilings (docs/posture.md)",
+    "kinematics.posture_rate_deg_per_mm": "largest change of the rotation about the tool axis "
+                                          "per mm of path, posture = \"path\" [deg/mm]",
 }
 
 
@@ -191,7 +222,7 @@ def reference_markdown() -> str:
     out = []
     tables = [("(top level)", None, {"material": Job.model_fields["material"]})]
     for name in ("job", "cell", "tool", "spindle", "limits", "engagement", "stock", "model",
-                 "plan", "path", "kinematics"):
+                 "plan", "path", "kinematics", "calibration", "export"):
         model = TABLES[name]
         tables.append(("[engagement.stock]" if name == "stock" else f"[{name}]", name,
                        model.model_fields))
@@ -318,6 +349,11 @@ def parse_job(doc: dict, file: str = "<job>", folder: str | Path = ".") -> Job:
     if _depth(doc, MAX_DEPTH) > MAX_DEPTH:
         raise JobError(file, [f"tables and arrays nest more than {MAX_DEPTH} deep; a job file "
                               "needs at most 5 (see docs/job.md)"])
+    from planner.calibrate.overlay import merge_overlay
+
+    doc, overlay_problems = merge_overlay(doc, folder)
+    if overlay_problems:
+        raise JobError(file, overlay_problems)
     try:
         job = Job.model_validate({**doc, "folder": str(folder)})
     except ValidationError as e:

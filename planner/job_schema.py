@@ -20,6 +20,7 @@ from robot_io.krl.frames import frame_from_mm_deg
 __all__ = [
     "CellSection",
     "EngagementSection",
+    "ExportSection",
     "Job",
     "JobSI",
     "JobSection",
@@ -174,6 +175,7 @@ class LimitsSection(_Section):
     path_jerk_max_m_s3: PosFloat = 10.0
     rapid_mm_s: Annotated[float, _upto("limits.rapid_mm_s")] = 250.0
     cam_feed_scale_max: PosFloat = 1.0
+    deflection_model_uncertainty: Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)] = 0.3
 
     @model_validator(mode="after")
     def _feed_range(self) -> LimitsSection:
@@ -250,12 +252,49 @@ class ModelSection(_Section):
     gamma_window_deg: Annotated[list[float], Field(min_length=2, max_length=2)] = [-90.0, 90.0]
     process_gain: PosFloat = 1.0
     cct: bool = True
+    chatter_probability_max: Annotated[float, Field(gt=0.0, lt=1.0, allow_inf_nan=False)] | None = None
+
+
+class CalibrationSection(_Section):
+    """``[calibration]``: an overlay from ``cctmill calibrate`` and the values it fitted
+    (docs/calibration.md); the coefficients are SI (N/m², N/m)."""
+
+    overlay: str | None = None
+    k_tc: PosFloat | None = None
+    k_rc: float | None = None
+    k_ac: float | None = None
+    k_te: float | None = None
+    k_re: float | None = None
+    k_ae: float | None = None
+    boundary_criterion: Literal["eigen", "floquet", "gamma_window"] | None = None
+    boundary_features: list[str] = []
+    boundary_mean: Annotated[list[float], Field(min_length=3, max_length=3)] | None = None
+    boundary_scale: Annotated[list[float], Field(min_length=3, max_length=3)] | None = None
+    boundary_coef: Annotated[list[float], Field(min_length=3, max_length=3)] | None = None
+    boundary_intercept: float | None = None
+    records: list[str] = []
+    fitted_utc: str | None = None
+    report: str | None = None
+
+    @model_validator(mode="after")
+    def _all_six(self) -> CalibrationSection:
+        given = [k for k in ("k_tc", "k_rc", "k_ac", "k_te", "k_re", "k_ae")
+                 if getattr(self, k) is not None]
+        if given and len(given) != 6:
+            raise ValueError("give all six cutting coefficients k_tc .. k_ae or none")
+        return self
+
+    def coefficients(self) -> np.ndarray | None:
+        """The fitted coefficients [k_tc .. k_ae] (6,), or None."""
+        if self.k_tc is None:
+            return None
+        return np.array([self.k_tc, self.k_rc, self.k_ac, self.k_te, self.k_re, self.k_ae], float)
 
 
 class PlanSettings(_Section):
     """``[plan]``: how ``cctmill plan`` chooses sections and feeds."""
 
-    method: Literal["optimize", "thesis", "constant"] = "optimize"
+    method: Literal["optimize", "sections", "thesis", "constant"] = "optimize"
     safety_factor: Annotated[float, Field(ge=1.0, allow_inf_nan=False)] = 1.1
     thesis_section_length_mm: PosFloat = 100.0
     section_change_cost_s: NonNegFloat = 0.02
@@ -269,6 +308,12 @@ class PathSection(_Section):
     step_max_mm: PosFloat = 2.0
 
 
+class ExportSection(_Section):
+    """``[export]``: how the plan will be exported (what the planner must hold for it)."""
+
+    compensate_deflection: bool = False
+
+
 class KinematicsSection(_Section):
     """``[kinematics]``: inverse kinematics along the path."""
 
@@ -276,6 +321,8 @@ class KinematicsSection(_Section):
     tool_rotation: Literal["free", "fixed"] = "free"
     tool_rotation_deg: float = 0.0
     choose_for_stiffness: bool = False
+    posture: Literal["first_sample", "path"] = "first_sample"
+    posture_rate_deg_per_mm: Annotated[float, Field(gt=0.0, le=10.0, allow_inf_nan=False)] = 1.0
 
 
 class Job(_Section):
@@ -292,7 +339,18 @@ class Job(_Section):
     plan: PlanSettings = PlanSettings()
     path: PathSection = PathSection()
     kinematics: KinematicsSection = KinematicsSection()
+    export: ExportSection = ExportSection()
+    calibration: CalibrationSection = CalibrationSection()
     folder: str = "."
+
+    def material_coefficients(self) -> np.ndarray:
+        """Cutting coefficients [k_tc .. k_ae] (6,), SI: the calibration's, else the material's."""
+        fitted = self.calibration.coefficients()
+        if fitted is not None:
+            return fitted
+        from models.tooling import load_material
+
+        return load_material(self.material).coefficients()
 
     def toolpath_files(self) -> list[Path]:
         """Absolute toolpath paths (relative ones resolve against the job file's folder)."""
@@ -387,4 +445,4 @@ TABLES: dict[str, type[BaseModel]] = {
     "job": JobSection, "cell": CellSection, "tool": ToolSection, "spindle": SpindleSection,
     "limits": LimitsSection, "engagement": EngagementSection, "model": ModelSection,
     "plan": PlanSettings, "path": PathSection, "kinematics": KinematicsSection,
-    "stock": StockSection}
+    "stock": StockSection, "calibration": CalibrationSection, "export": ExportSection}

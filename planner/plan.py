@@ -12,18 +12,24 @@ Every sample of the path gets a kind (cut / air / rapid, :mod:`planner.sections`
 are evaluated with the full point model (:mod:`planner.ceilings`); their feed ceilings feed the
 chosen method:
 
-* ``optimize`` — CasADi + IPOPT (:mod:`planner.optimize`), warm-started from the thesis baseline;
+* ``optimize`` — the sections of ``sections``, then a *feed profile* (:mod:`planner.feed_profile`):
+  a path speed per sample under every sample's ceiling, the path acceleration and jerk and the
+  joints' limits; each section's planned feed is the base its profile is a multiple of (the KRL
+  ``.dat`` value that retunes it);
+* ``sections`` — CasADi + IPOPT (:mod:`planner.optimize`), warm-started from the thesis baseline,
+  one feed per section;
 * ``thesis`` — the thesis's section algorithm (:mod:`planner.thesis_sections`);
 * ``constant`` — one feed for the whole cut: the lowest ceiling (the safe constant feed).
 
 ``air`` sections run at ``feed_max`` (plunges keep their programmed feed, capped), ``rapid``
-sections at ``rapid_mm_s``. toppra and ruckig then time the path (:mod:`planner.timing`).
+sections at ``rapid_mm_s``. toppra and ruckig then time the path (:mod:`planner.timing`); the
+profile is its own timing.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -32,6 +38,7 @@ from models.errors import CctmillError, InputError
 from models.tooling import load_material
 from planner.cam_feed import apply_cam_feed, cam_feed_caps, check_rapid_above_feed, non_cut_sections
 from planner.ceilings import CONSTRAINTS, Ceilings, Evaluation, PathModel
+from planner.feed_profile import REST_SPEED, FeedProfile, profile_timing
 from planner.job import Job
 from planner.limits import Limits
 from planner.optimize import NOT_SOLVED, SolveResult, optimize_sections
@@ -64,6 +71,7 @@ from robot_io.krl.reader import matrices_to_abc
 
 __all__ = [
     "CHARACTERISTIC_FEEDS",
+    "JOINT_RELAX",
     "METHODS",
     "PlanInfeasibleError",
     "PlanResult",
@@ -74,12 +82,18 @@ __all__ = [
     "summary",
 ]
 
-METHODS = ("optimize", "thesis", "constant")
+METHODS = ("optimize", "sections", "thesis", "constant")
+#: Factor on the joints' speed and acceleration limits for the commanded profile (the process's
+#: own profile: the controller, not the program, slows where the joints bind; see ``_profiled``).
+JOINT_RELAX = 1e3
+#: Methods whose plan is a feed profile (a speed per sample) rather than one feed per section.
+PROFILED = ("optimize",)
 #: Threads of the ceilings' evaluation by default (:class:`planner.ceilings.PathModel`).
 DEFAULT_THREADS = 2
 #: What a method that solves no NLP does instead, in words (the report and ``cctmill plan``).
 _NO_OPTIMISATION = {
     "optimize": "no optimisation needed: the path has no cut samples",
+    "sections": "no optimisation needed: the path has no cut samples",
     "thesis": "no optimisation: the thesis section algorithm sets the feeds",
     "constant": "no optimisation: one constant feed, the lowest ceiling of the cut",
 }
@@ -129,6 +143,8 @@ class PlanResult:
             (:func:`planner.partition.cut_time_bound`).
         warnings: what the plan's user must know that did not stop it (tool data that do not
             apply, coefficients identified with another tool, rubbing, engagement).
+        profile: the feed profile and its pointwise bound (profiled methods), else ``None``;
+            ``feed`` is then the profile, a speed per sample.
     """
 
     method: str
@@ -147,6 +163,12 @@ class PlanResult:
     plan_sections: tuple[PlanSection, ...] = ()
     cut_time_bound: float = float("nan")
     warnings: tuple[PlanWarning, ...] = ()
+    profile: FeedProfile | None = None
+
+    @property
+    def profiled(self) -> bool:
+        """The plan is a feed profile (a speed per sample), not one feed per section."""
+        return self.profile is not None
 
     @property
     def section_rows(self) -> list[dict[str, Any]]:
@@ -156,9 +178,14 @@ class PlanResult:
 
     @property
     def cut_time(self) -> float:
-        """Σ ds/feed over the cut samples [s]."""
-        ds = step_lengths(self.prep.path.s)
+        """Time over the cut samples' steps [s]: Σ ds/feed for a section plan; for a feed profile
+        the timed time of those steps (the profile dips towards rest at sharp corners, where
+        ds/feed at one sample would count the whole step at the dip's speed)."""
         sel = self.kinds == CUT
+        if self.profile is not None:
+            t = np.asarray(self.timing.time, float)
+            return float(np.sum(np.diff(t, prepend=t[:1])[sel]))
+        ds = step_lengths(self.prep.path.s)
         return float(np.sum(ds[sel] / self.feed[sel]))
 
     @property
@@ -254,7 +281,7 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
 
     Args:
         prep: the prepared job.
-        method: ``optimize``, ``thesis`` or ``constant``.
+        method: ``optimize`` (sections + feed profile), ``sections``, ``thesis`` or ``constant``.
         safety_factor: the thesis safety factor (default: the job's).
         limits: override the job's limits.
         f_ref: feed scale of the optimiser's variables [m/s] (default feed_max).
@@ -301,7 +328,7 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
                               job.to_si().thesis_section_length, limits.section_length_min,
                               sf, limits.feed_min,
                               every_sample=thesis_every_sample or method != "thesis")
-        if method == "optimize":
+        if method in ("optimize", "sections"):
             warm = np.full(n, np.nan)
             for sec in cut:
                 warm[sec.start:sec.stop] = sec.feed
@@ -316,13 +343,18 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
     feed = np.empty(n)
     for sec in sections:
         feed[sec.start:sec.stop] = sec.feed
+    data = prep.robot.data
+    profile = None
+    if method in PROFILED:
+        sections, feed, timing, profile = _profiled(sections, feed, model, ceil, prep, limits)
+        walls["profile_lp_s"] = profile.lp_time
+    else:
+        timing = time_path(path.s, prep.kinematics.q, feed, data.velocity, data.acceleration,
+                           limits.path_acc_max, limits.path_jerk_max)
+    walls["timing_s"] = timing.compute_time
     t = time.perf_counter()
     evaluation = model.evaluate(feed[model.index])
     walls["evaluation_s"] = time.perf_counter() - t
-    data = prep.robot.data
-    timing = time_path(path.s, prep.kinematics.q, feed, data.velocity, data.acceleration,
-                       limits.path_acc_max, limits.path_jerk_max)
-    walls["timing_s"] = timing.compute_time
     cut_secs = [sec for sec in sections if sec.kind == CUT]
     warnings = [*prep.warnings, *getattr(prep.engagement, "warnings", ()),
                 *tool_warnings(prep.tool, load_material(job.material)),
@@ -332,6 +364,7 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
     result = PlanResult(method=method, prep=prep, model=model, ceilings=ceil, sections=sections,
                         feed=feed, kinds=kinds, evaluation=evaluation, timing=timing,
                         solver=solver, limits=limits, safety_factor=sf, wall_times=walls,
+                        profile=profile,
                         warnings=tuple(w if isinstance(w, PlanWarning)
                                        else PlanWarning("engagement", str(w)) for w in warnings))
     t = time.perf_counter()
@@ -341,13 +374,50 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
     return result
 
 
+def _profiled(sections: list[Section], feed: np.ndarray, model: PathModel, ceil: Ceilings,
+              prep: Prepared, limits: Limits
+              ) -> tuple[list[Section], np.ndarray, Timing, FeedProfile]:
+    """The feed profile under every sample's ceiling (cut: the process ceiling; air and rapid:
+    their sections' feeds). The sections keep their planned feeds: each is the base its samples'
+    profile is a multiple of (the KRL ``.dat`` value that retunes the section)."""
+    ceiling = feed.copy()
+    ceiling[model.index] = ceil.feed
+    data = prep.robot.data
+    timing, prof = profile_timing(prep.path.s, prep.kinematics.q, ceiling, data.velocity,
+                                  data.acceleration, limits.path_acc_max, limits.path_jerk_max)
+    # The commanded feed is the profile the *process* allows: the same ceilings, path
+    # acceleration and jerk, without the joints' limits (relaxed by JOINT_RELAX). Where the joints
+    # slow the robot (a sharp corner: ṡ dips towards rest at one sample) the controller slows by
+    # itself, as it does in a section plan; commanding the dip would run the whole LIN into the
+    # corner at the dip's speed. The timing (cycle, robot-limited samples) keeps the joints.
+    free, _ = profile_timing(prep.path.s, prep.kinematics.q, ceiling,
+                             np.asarray(data.velocity, float) * JOINT_RELAX,
+                             np.asarray(data.acceleration, float) * JOINT_RELAX,
+                             limits.path_acc_max, limits.path_jerk_max)
+    speed = np.minimum(np.maximum(free.speed, timing.speed), ceiling)
+    # at the path's two rest points (ṡ = 0, the controller starts and stops there by itself) the
+    # command is the nearest moving sample's, under the ceiling
+    moving = np.flatnonzero(speed > REST_SPEED)
+    cmd = speed.copy()
+    if moving.size:
+        rest = np.flatnonzero(speed <= REST_SPEED)
+        near = moving[np.clip(np.searchsorted(moving, rest), 0, moving.size - 1)]
+        cmd[rest] = np.minimum(speed[near], ceiling[rest])
+    out = [sec if sec.kind != CUT else
+           replace(sec, note=(sec.note + "; " if sec.note else "") + "feed profile: its samples "
+                   "run at the profile, this feed the base it scales")
+           for sec in sections]
+    return out, cmd, timing, prof
+
+
 def plan_job(job: Job, method: str | None = None, safety_factor: float | None = None,
              progress: bool = False, threads: int = DEFAULT_THREADS) -> PlanResult:
     """Prepare and plan a job.
 
     Args:
         job: the validated job.
-        method: ``optimize``, ``thesis`` or ``constant`` (default: the job's ``[plan] method``).
+        method: ``optimize``, ``sections``, ``thesis`` or ``constant`` (default: the job's
+            ``[plan] method``).
         safety_factor: the thesis safety factor (default: the job's).
         progress: show progress on stderr.
         threads: threads of the ceilings' evaluation (1 in a study's worker process, which has
@@ -374,13 +444,18 @@ def _plan_sections(res: PlanResult, ceiling: np.ndarray,
     ds = step_lengths(path.s)
     rows: list[dict[str, Any]] = []
     lim = res.limits
+    bound = timing.bound
     grid = np.geomspace(lim.feed_min, lim.feed_max, CHARACTERISTIC_FEEDS)
     pending: list[tuple[dict[str, Any], int]] = []
     for i, sec in enumerate(res.sections):
         a, b = sec.start, sec.stop
         length = float(ds[a:b].sum())
         t_sec = float(timing.time[b - 1] - (timing.time[a - 1] if a > 0 else 0.0))
-        robot_limited = bool(length > 0 and t_sec > 0 and length / t_sec < ROBOT_LIMITED_SECTION * sec.feed)
+        # a profile's sections are judged against their samples' ceilings, a section plan's
+        # against its feed (the same formula: Σ ds / planned bound)
+        ideal = float(np.sum(ds[a:b] / bound[a:b])) if res.profiled else length / sec.feed
+        robot_limited = bool(length > 0 and t_sec > 0 and ideal < ROBOT_LIMITED_SECTION * t_sec)
+        process_time = float(np.sum(ds[a:b] / res.feed[a:b])) if res.profiled else length / sec.feed
         row: dict[str, Any] = {
             "index": i, "kind": KINDS[sec.kind], "sample_start": a, "sample_stop": b,
             "s_start": float(path.s[a - 1] if a > 0 else path.s[0]),
@@ -388,7 +463,7 @@ def _plan_sections(res: PlanResult, ceiling: np.ndarray,
             "binding": "robot" if robot_limited else sec.binding, "process_binding": sec.binding,
             "note": sec.note, "line_start": int(path.line[a]), "line_end": int(path.line[b - 1]),
             "file": path.files[int(path.file[a])], "time": t_sec,
-            "process_time": length / sec.feed, "robot_limited": robot_limited,
+            "process_time": process_time, "robot_limited": robot_limited,
             "tooth_frequency": model.tooth_frequency,
         }
         if sec.kind == CUT:
@@ -494,6 +569,8 @@ def summary(res: PlanResult) -> dict[str, Any]:
         "binding_counts": counts,
         "cut_time_s": res.cut_time,
         "cut_time_bound_s": res.cut_time_bound,
+        "pointwise_bound_cycle_s": (res.profile.bound_cycle_time if res.profile is not None
+                                    else None),
         "robot_limited_sections": sum(1 for s in secs if s.robot_limited),
         "force_max_N": float(ev.force.max()) if ev.force.size else None,
         "deflection_max_mm": float(ev.deflection_norm.max() * 1e3) if ev.force.size else None,

@@ -163,7 +163,8 @@ class PlanSection:
         kind: ``"cut"``, ``"air"`` or ``"rapid"``.
         sample_start, sample_stop: the samples it covers, ``[start, stop)``.
         s_start, s_end: arc length at its ends [m]; length: its length [m].
-        feed: planned feed [m/s] (the ``$VEL.CP`` of the section).
+        feed: planned feed [m/s] (the ``$VEL.CP`` of the section; in a feed profile the base the
+            samples' ``feed`` is a multiple of).
         binding: what holds it back (:data:`BINDINGS`), ``robot`` when the timed speed stays under
             90 % of the feed; process_binding: what binds the feed itself.
         note: why the feed is what it is, for people.
@@ -319,7 +320,7 @@ class Plan:
     """A plan, SI. Made by :meth:`from_result` or :func:`load_plan`; written by :meth:`save`.
 
     Attributes:
-        method: ``optimize``, ``thesis`` or ``constant``.
+        method: ``optimize`` (a feed profile), ``sections``, ``thesis`` or ``constant``.
         job_name, job_folder: the job it plans.
         robot: robot data name.
         files: the toolpath files (``PlanSection.file`` and ``PlanSamples.source_file`` refer to it).

@@ -154,6 +154,8 @@ class ConstraintsDoc(_Doc):
     rapid_mm_s: _Feed | None = None
     cam_feed_scale_max: _Positive | None = None
     safety_factor: _Positive | None = None
+    deflection_model_uncertainty: _NonNeg | None = None
+    compensate_deflection: _Bool | None = None
 
 
 class CharacteristicDoc(_Doc):

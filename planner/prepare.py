@@ -50,7 +50,11 @@ class Prepared:
         warnings: what preparing noticed that the plan must carry (a tool override that drops
             the tool file's limits).
         wall_times: wall time of its stages [s]: ``read_s`` (toolpaths read and sampled),
-            ``ik_s`` (inverse kinematics), ``engagement_s``.
+            ``ik_s`` (inverse kinematics), ``engagement_s``, and with a path posture
+            ``posture_s`` (and its stages, ``posture_*``).
+        posture: the posture chosen along the path (:class:`planner.posture.Posture`) when the
+            job asks for ``[kinematics] posture = "path"``, else ``None``; ``kinematics`` then
+            holds its joint angles.
     """
 
     job: Job
@@ -62,6 +66,7 @@ class Prepared:
     engagement: Engagement
     warnings: tuple[PlanWarning, ...] = ()
     wall_times: dict[str, float] = field(default_factory=dict)
+    posture: Any = None
 
 
 def tool_of(job: Job) -> Tool:
@@ -100,12 +105,18 @@ def read_job_toolpaths(job: Job, chord_tol: float | None = None) -> tuple[Toolpa
             for p, fmt in zip(files, formats, strict=True))
 
 
-def prepare(job: Job, progress: bool = False) -> Prepared:
+def prepare(job: Job, progress: bool = False, posture: str | None = None) -> Prepared:
     """Read, sample, solve and engage a job (offline: raises on bad input).
 
     Args:
         job: the validated job.
         progress: show progress on stderr (long paths).
+        posture: ``"first_sample"`` or ``"path"`` (the rotation about the tool axis chosen along
+            the whole path, :mod:`planner.posture`); default the job's ``[kinematics] posture``.
+
+    Raises:
+        JobError: ``posture = "path"`` with ``tool_rotation = "fixed"`` (the rotation cannot be
+            both held and chosen).
     """
     t = time.perf_counter()
     robot = load_robot(job.cell.robot)
@@ -117,6 +128,14 @@ def prepare(job: Job, progress: bool = False) -> Prepared:
     walls = {"read_s": time.perf_counter() - t}
     t = time.perf_counter()
     fixed = job.kinematics.tool_rotation == "fixed"
+    posture = job.kinematics.posture if posture is None else posture
+    if posture not in ("first_sample", "path"):
+        raise JobError(f"job {job.job.name!r}", [
+            f"[kinematics] posture = {posture!r}: use \"first_sample\" or \"path\""])
+    if posture == "path" and fixed:
+        raise JobError(f"job {job.job.name!r}", [
+            "[kinematics] posture = \"path\" chooses the rotation about the tool axis, "
+            "tool_rotation = \"fixed\" holds it: leave one out"])
     kin = solve_path(robot, path, si.tool, IKOptions(
         seed=si.seed_joints, choose_for_stiffness=job.kinematics.choose_for_stiffness and not fixed,
         tool_rotation=si.tool_rotation if fixed else None),
@@ -149,9 +168,18 @@ def prepare(job: Job, progress: bool = False) -> Prepared:
                             feed_dir=None if e.feed_dir is None else e.feed_dir @ rot.T,
                             plunge=e.plunge, warnings=e.warnings)
     walls["engagement_s"] = time.perf_counter() - t
-    return Prepared(job=job, robot=robot, tool=tool, toolpaths=toolpaths, path=path,
+    prep = Prepared(job=job, robot=robot, tool=tool, toolpaths=toolpaths, path=path,
                     kinematics=kin, engagement=engagement, warnings=tuple(warnings),
                     wall_times=walls)
+    if posture == "path" and kin.all_reachable:
+        from planner.posture import PostureOptions, apply_posture, choose_posture
+
+        t = time.perf_counter()
+        chosen = choose_posture(prep, PostureOptions(
+            rate_deg_per_mm=job.kinematics.posture_rate_deg_per_mm))
+        prep = apply_posture(prep, chosen)
+        prep.wall_times["posture_s"] = time.perf_counter() - t
+    return prep
 
 
 def inspect_job(prep: Prepared) -> dict[str, Any]:

@@ -107,8 +107,18 @@ def demo_prepared():
 
 @pytest.fixture(scope="session")
 def demo_optimized(demo_prepared):
-    """The demo job planned by the optimiser (a :class:`planner.plan.PlanResult`). Shared by the
-    session: do not modify it (copy the feeds and sections first)."""
+    """The demo job planned by the section optimiser (``sections``: one feed per section, a
+    :class:`planner.plan.PlanResult`). Shared by the session: do not modify it (copy the feeds
+    and sections first)."""
+    from planner.plan import plan_prepared
+
+    return plan_prepared(demo_prepared, "sections")
+
+
+@pytest.fixture(scope="session")
+def demo_profiled(demo_prepared):
+    """The demo job planned with a feed profile (``optimize``: the sections of ``sections`` and a
+    speed per sample). Shared by the session: do not modify it."""
     from planner.plan import plan_prepared
 
     return plan_prepared(demo_prepared, "optimize")

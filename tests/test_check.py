@@ -143,8 +143,12 @@ def test_broken_bookkeeping_is_reported_rule_by_rule(demo_optimized):
     speed[too_fast] *= 1.001
     report = check_plan(res.prep, res.feed, res.kinds, speed, sections, limits)
     got = {}
+    # the planned feed as "timed speed" steps between sections: the path-acceleration and joint
+    # checks (test_feed_profile.py) rightly flag it; this test is about the bookkeeping rules
+    dynamic = {"path_acceleration", "path_jerk", "joint_speed", "joint_acceleration"}
     for v in report.violations:
-        got.setdefault(v.constraint, set()).add(v.sample)
+        if v.constraint not in dynamic:
+            got.setdefault(v.constraint, set()).add(v.sample)
     expected = {
         "feed_change": {a for a, d in steps if d > change_max * (1 + 1e-6)},
         "section_length": {a for a, b, _, _ in cut

@@ -42,8 +42,10 @@ def _significant(number: str) -> int:
 
 
 def _visible_text(page: str) -> str:
-    """What a browser shows of an HTML page: no styles, no embedded images, no tags."""
+    """What a browser shows of an HTML page: no styles, no scripts (the 3-D view's data and
+    its packed plotly.js), no embedded images, no tags."""
     page = re.sub(r"<style>.*?</style>", " ", page, flags=re.S)
+    page = re.sub(r"<script[^>]*>.*?</script>", " ", page, flags=re.S)
     page = re.sub(r"<img[^>]*>", " ", page)
     return html.unescape(re.sub(r"<[^>]+>", " ", page))
 

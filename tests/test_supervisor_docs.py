@@ -72,27 +72,25 @@ def test_the_first_example_is_the_demos_run_and_shows_what_the_page_says(demo_pl
     text = DOC.read_text(encoding="utf-8")
     n1, n2 = sec.number, sec.number + 1
     assert f"shortly before section {n1} of the demo plan" in text
-    assert f"In section {n2} the model's margin rises with feed" in text
+    assert f"In section {n2}, with the model error, the arm is unstable at every feed" in text
 
     rc, out = _run(argv, demo_plan, tmp_path, capsys)
     episodes = out["episodes"]
     by_section = {e["section"]: e for e in episodes}
     assert set(by_section) == {n1, n2}, episodes
-    # 1. caught ~0.4 s after the onset, lowered; the applied override drops to 60 %; gone in
-    #    ~0.35 s; resolved; the ceiling 80 %, the override climbing back towards it
+    # 1. caught ~0.4 s after the onset, lowered; 60 % of the profile is not enough, down to the
+    #    floor (20 %); gone in ~0.7 s; resolved; the ceiling 60 %, the override climbing back
     e1 = by_section[n1]
     assert e1["direction"] == -1
     assert 300 < e1["onset_to_alarm_ms"] < 550
-    assert e1["override_min"] == pytest.approx(60.0, abs=2.0)
-    assert 250 < e1["settling_ms"] < 450
+    assert e1["override_min"] == pytest.approx(20.0, abs=2.0)
+    assert 500 < e1["settling_ms"] < 900
     assert e1["outcome"] == "resolved"
     recs = [json.loads(x) for x in (tmp_path / "events.jsonl").read_text().splitlines()]
     goals = [r["target"] for r in recs if r["status"] == "recover" and r["section"] == n1]
-    assert goals and goals[-1] == pytest.approx(80.0, abs=2.0)
-    # 2. raised, reversed one decision period (0.24 s) later, backed off to the floor, escalated
+    assert goals and goals[-1] == pytest.approx(60.0, abs=2.0)
+    # 2. chatter at the floor: escalated
     e2 = by_section[n2]
-    assert e2["direction"] == 1 and e2["reversed_after_ms"] is not None
-    assert e2["reversed_after_ms"] <= 240 + 8
     assert e2["override_min"] == pytest.approx(20.0, abs=1.0)
     assert e2["outcome"] == "escalated" and "floor" in e2["outcome_reason"]
     assert [a["kind"] for a in out["alarms"]] == ["chatter_escalated"]

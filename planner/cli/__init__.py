@@ -23,8 +23,11 @@ __all__ = ["COMMAND_MODULES", "build_parser", "main"]
 #: The command modules, in the order ``cctmill --help`` lists them.
 COMMAND_MODULES: tuple[str, ...] = (
     "planner.cli.analyze", "planner.cli.inspect", "planner.cli.demo", "planner.cli.export",
+    "planner.cli.calibrate",
+    "planner.cli.library",
     "planner.cli.place", "planner.cli.plan", "planner.cli.robot_sim", "planner.cli.simulate",
-    "planner.cli.supervise")
+    "planner.cli.supervise",
+    "planner.cli.testcuts")
 
 
 def build_parser() -> Parser:

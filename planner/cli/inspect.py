@@ -66,14 +66,15 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
         from planner.prepare import inspect_job, prepare
 
         job = load_job(target)
-        prep = prepare(job)
+        # progress bars on stderr, on a terminal only (planner/_progress.py): silent in scripts
+        prep = prepare(job, progress=True)
         out = inspect_job(prep)
         infeasible = None
         if out["reachability"]["all_reachable"]:  # a job that cannot be cut fails as in plan
             from planner.plan import PlanInfeasibleError, check_feasible
 
             try:
-                check_feasible(prep)
+                check_feasible(prep, progress=True)
             except PlanInfeasibleError as e:
                 infeasible = str(e)
             out["feasible"] = {"ok": infeasible is None, "reason": infeasible}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 from pathlib import Path
 
@@ -55,8 +56,11 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     from planner.job import load_job
     from planner.outputs import run_plan_job
 
+    job_doc = load_job(job)
     krl = krl_options(args) if args.krl else None
-    outputs = run_plan_job(load_job(job), out, args.method, args.safety_factor, krl=krl,
+    if krl is not None and job_doc.export.compensate_deflection and not krl.compensate:
+        krl = dataclasses.replace(krl, compensate=True)   # the plan's tolerance assumes it
+    outputs = run_plan_job(job_doc, out, args.method, args.safety_factor, krl=krl,
                            progress=not args.json)
     res, written = outputs.result, outputs.files
     if args.json:
@@ -81,7 +85,12 @@ def _cmd_plan(args: argparse.Namespace) -> int:
             print(f"  {w}")
     print(f"\n{res.method}: cycle {res.cycle_time:.2f} s (process {res.process_time:.2f} s), "
           f"{len(res.plan_sections)} sections; solver: {res.solver.describe()}")
-    if res.cut_time > 0:
+    if res.profile is not None:
+        low = res.profile.bound_cycle_time
+        print(f"feed profile: the cycle is {100 * (res.cycle_time / low - 1):.2f} % above the "
+              f"pointwise bound {low:.2f} s (every sample at its ceiling, no jerk limit: no feed "
+              "plan under these limits is faster)")
+    elif res.cut_time > 0:
         print(f"cutting {res.cut_time:.2f} s; no plan with sections >= "
               f"{res.limits.section_length_min * 1e3:g} mm can cut faster than "
               f"{res.cut_time_bound:.2f} s under these limits "
@@ -107,8 +116,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_output(p, "-o", "--output", kind="folder", default="out",
                help="output folder (default out/; made if missing)")
     p.add_argument("--method", choices=METHODS, default=None,
-                   help="optimize (CasADi + IPOPT, default), thesis (docs/model.md §8 section algorithm) "
-                        "or constant (the safe constant feed)")
+                   help="optimize (sections by CasADi + IPOPT, then a feed profile: a path speed "
+                        "per sample; default), sections (one feed per section), thesis "
+                        "(docs/model.md §8 section algorithm) or constant (the safe constant feed)")
     p.add_argument("--safety-factor", type=float, default=None,
                    help="thesis method: f_real = f_max / safety factor (default from the job, 1.1)")
     p.add_argument("--krl", action="store_true", help="also write the KUKA KRL program "

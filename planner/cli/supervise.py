@@ -25,6 +25,8 @@ from planner._atomic import output_errors
 from planner.cli._common import add_output
 from planner.display import quantity
 from planner.plan_file import load_plan
+from planner.supervisor.compensation import CompensationConfig
+from planner.supervisor.detectors import DEFAULT_DETECTOR, DETECTORS
 from planner.supervisor.metrics import episode_outcome_text, episode_timing_text
 from planner.supervisor.policy import SupervisorConfig
 from planner.supervisor.session import SessionConfig, supervise
@@ -38,7 +40,9 @@ EXIT_OPERATOR_ALARM = 3
 #: Flags of the library's fields, for messages that name a field.
 _FLAGS = {"alpha_f": "--alpha-f", "cycle": "--cycle-ms", "duration": "--duration-s",
           "fs_hz": "--fs-hz", "sigma": "--sigma", "robot": "--robot", "signal": "--signal",
-          "sim_protocol": "--sim-protocol", "rsi_config": "--rsi-config"}
+          "sim_protocol": "--sim-protocol", "rsi_config": "--rsi-config",
+          "compensation": "--compensate-rkorr", "max_position_mm": "--rkorr-max-mm",
+          "max_rate_mm_s": "--rkorr-rate-mm-s"}
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -62,6 +66,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                                                "default 10000 for sim, from the stream for udp)")
     p.add_argument("--alpha-f", type=float, default=6e-5,
                    help="false-alarm rate per band value (default 6e-5: L_c = 4.0)")
+    p.add_argument("--detector", choices=sorted(DETECTORS), default=DEFAULT_DETECTOR,
+                   help="chatter detector: dwt (the thesis's wavelet band, default) or iir "
+                        "(band-pass with tooth notches, faster; docs/supervisor.md)")
     p.add_argument("--duration-s", type=float, help="stop after this long [s] (default: sim 6 s, file: "
                                                      "its length, udp: until Ctrl-C)")
     p.add_argument("--cycle-ms", type=float, default=4.0, help="supervisor cycle [ms] (KR C4 4, KR C2 12)")
@@ -71,6 +78,20 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--floor-pct", type=float, default=20.0, help="lowest override [%%] (default 20)")
     p.add_argument("--safe-pct", type=float, help="override when the signal is lost [%%] (default: floor)")
     p.add_argument("--start-mm", type=float, default=0.0, help="arc length where the cut starts [mm]")
+    c = p.add_argument_group("online deflection compensation (RSI RKorr; docs/compensation.md)")
+    c.add_argument("--compensate-rkorr", action="store_true",
+                   help="send a Cartesian correction every cycle: mean force -> engagement -> deflection "
+                        "-> RKorr (RSI links; off by default)")
+    c.add_argument("--rkorr-frame", choices=["base", "tool"], default="base",
+                   help="frame of the correction, as the POSCORR object's RefCorrSys (default base)")
+    c.add_argument("--rkorr-max-mm", type=float, default=5.0,
+                   help="bound of each component of the total correction [mm] (default 5, KUKA's POSCORR "
+                        "example; rotations are bounded at 5 deg and stay zero)")
+    c.add_argument("--rkorr-rate-mm-s", type=float, default=10.0,
+                   help="largest speed of the correction [mm/s] (default 10)")
+    c.add_argument("--rkorr-offline", action="store_true",
+                   help="the program was exported with --compensate-deflection: correct only what the "
+                        "plan's deflection did not")
     g = p.add_argument_group("simulation (--signal sim / --robot sim)")
     g.add_argument("--sim-protocol", choices=["kvp", "rsi"], default="kvp",
                    help="protocol of the simulated controller (default kvp)")
@@ -86,6 +107,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="--signal sim with kvp://: run on a virtual clock (no sleeping)")
     add_output(p, "--plot", kind="file", metavar="FILE.png",
                    help="plot the band against its limit, the override and (sim) the true chatter")
+    add_output(p, "--records", kind="append", metavar="CUTS.jsonl",
+               help="append one cut record per section run, with the detector's verdict, for "
+                    "cctmill calibrate (docs/calibration.md); needs --tool")
+    p.add_argument("--tool", metavar="NAME", help="the tool data name the records give (a name of "
+                                                  "cctmill tools, the one the plan was made with)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(run=run)
 
@@ -111,18 +137,26 @@ def session_config(args: argparse.Namespace) -> SessionConfig:
     """The session settings the flags ask for (SI)."""
     return SessionConfig(
         supervisor=SupervisorConfig(alpha_f=args.alpha_f, floor_pct=args.floor_pct,
-                                    safe_pct=args.safe_pct),
+                                    safe_pct=args.safe_pct, detector=args.detector),
         cycle=args.cycle_ms * 1e-3, duration=args.duration_s, fs_hz=args.fs_hz, sigma=args.sigma,
         learn=args.stable_s, start=args.start_mm * 1e-3, log=args.log, plot=args.plot,
         signal_column=args.signal_column, sim_protocol=args.sim_protocol, fast=args.fast,
-        rsi_config=args.rsi_config)
+        rsi_config=args.rsi_config,
+        compensation=(CompensationConfig(cycle_s=args.cycle_ms * 1e-3, max_position_mm=args.rkorr_max_mm,
+                                         max_rate_mm_s=args.rkorr_rate_mm_s, frame=args.rkorr_frame)
+                      if args.compensate_rkorr else None),
+        compensation_offline=args.rkorr_offline, records=args.records,
+        records_tool=args.tool or "")
 
 
 def run(args: argparse.Namespace) -> int:
     """``cctmill supervise``: run the session, print its summary (text or JSON)."""
+    if args.records and not args.tool:
+        raise InputError("--records", "needs --tool NAME: the records name the tool the plan was "
+                         "made with (see cctmill tools)")
     plan = load_plan(args.plan)
     try:
-        with output_errors(args.log, args.plot, unnamed=False):   # the log is opened inside
+        with output_errors(args.log, args.plot, args.records, unnamed=False):   # the log is opened inside
             summary = supervise(plan, args.signal, args.robot, session_config(args),
                                 _scenario(args))
     except InputError as e:
@@ -141,7 +175,7 @@ def _g(x: float | None) -> str:
 def _text(s: dict) -> str:
     rows = [f"plan          {s['plan']}",
             f"signal        {s['signal']} at {s['fs_hz']:g} Hz; robot {s['robot']}",
-            f"detector      {s['level_reason']}",
+            f"detector      {s.get('detector_reason', s['level_reason'])}",
             f"chart         L_c {s['L_c']:.3f}, sigma {_g(s['sigma'])}, UCL {_g(s['ucl'])}"]
     if "steps" in s:
         lat = s["step_latency_ms"]
@@ -173,6 +207,16 @@ def _text(s: dict) -> str:
         f" (exit status {EXIT_OPERATOR_ALARM})" if alarms else ": none needed"))
     for a in alarms:
         rows.append(f"  at {a['after_s']:.3f} s, section {a['section']}, {a['kind']}: {a['reason']}")
+    comp = s.get("compensation")
+    if comp:
+        tot = ", ".join(f"{v:+.3f}" for v in comp["total"][:3])
+        rows.append(f"RKorr         {comp['frame']} frame, {comp['mode']}: "
+                    + ", ".join(f"{k} {v}" for k, v in sorted(comp["status_counts"].items()))
+                    + f"; refused {comp['link_failures']}; total ({tot}) mm")
+    rec = s.get("records")
+    if rec:
+        rows.append(f"records       {rec['written']} cut record(s) appended to {rec['file']}"
+                    + (f"; {rec['errors']} failed ({rec['last_error']})" if rec["errors"] else ""))
     if s.get("log"):
         rows.append(f"log           {s['log']}")
     if s.get("plot"):

@@ -1,12 +1,13 @@
 """Reports of a plan: the self-contained HTML page and its figures (:mod:`~planner.report.html`),
-the path and characteristic plots (:mod:`~planner.report.plots`) and the point model's tables
-(:mod:`~planner.report.tables`)."""
+the toolpath in 3-D (:mod:`~planner.report.view3d`, plotly offline), the path and characteristic
+plots (:mod:`~planner.report.plots`) and the tables (:mod:`~planner.report.tables`)."""
 
 from planner.report.html import (
     BINDING_COLOURS,
     BROWSERS,
     ReportRenderError,
     find_browser,
+    headline,
     plot_along_path,
     plot_characteristics,
     render_screenshot,
@@ -23,23 +24,33 @@ from planner.report.tables import (
     analysis_json,
     analysis_table,
     characteristic_table,
+    limiting_joints,
+    section_engagement,
 )
+from planner.report.view3d import VIEW_MAX_POINTS, plotlyjs_script, toolpath_figure, view3d_html
 
 __all__ = [
     "BINDING_COLOURS",
     "BROWSERS",
     "ReportRenderError",
+    "VIEW_MAX_POINTS",
     "analysis_json",
     "analysis_table",
     "characteristic_table",
     "find_browser",
+    "headline",
+    "limiting_joints",
     "new_figure",
     "plot_along_path",
     "plot_characteristic",
     "plot_characteristics",
     "plot_path_kinematics",
+    "plotlyjs_script",
     "render_screenshot",
     "save_figure",
+    "section_engagement",
     "tightest_sections",
+    "toolpath_figure",
+    "view3d_html",
     "write_report",
 ]

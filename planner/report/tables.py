@@ -1,4 +1,6 @@
-"""How a point analysis is shown: JSON for scripts (SI, angles in degrees), a table for people."""
+"""How a point analysis is shown: JSON for scripts (SI, angles in degrees), a table for people;
+and what the report's section table adds to plan.json (a_e/a_p, the joint a robot-bound section
+waits for)."""
 
 from __future__ import annotations
 
@@ -8,7 +10,8 @@ import numpy as np
 
 from models.point import PointAnalysis, StabilityCharacteristic
 
-__all__ = ["analysis_json", "analysis_table", "characteristic_table"]
+__all__ = ["analysis_json", "analysis_table", "characteristic_table", "limiting_joints",
+           "section_engagement"]
 
 
 def _list(a: np.ndarray) -> list:
@@ -114,3 +117,73 @@ def characteristic_table(ch: StabilityCharacteristic) -> str:
     rows.append(f"feed limit {ch.feed_limit * 1e3:.3f} mm/s, bound by {ch.binding} "
                 f"(force limit {ch.force_limit:.0f} N)")
     return "\n".join(rows)
+
+
+#: Shortest step along the path a derivative is taken over [m] (a repeated sample is skipped
+#: rather than divided by).
+_DS_MIN = 1e-9
+#: A limit is "reached" from this share of it on (the estimates are a few per cent off).
+_NEAR_LIMIT = 0.8
+
+
+def limiting_joints(res) -> dict[int, str]:
+    """For each robot-bound section (its plan.json ``index``), what holds it back, nearest its
+    limit over the section: a joint's speed |q̇| / q̇_max (``"A3 speed 99 %"``), a joint's
+    acceleration |q̈| / q̈_max (``"A1 accel. 97 %"``), or, when no joint comes as near, the path
+    acceleration limit toppra also holds (``"path accel. 100 % (A2 accel. 68 %)"``, the nearest
+    joint in brackets). Where none comes within :data:`_NEAR_LIMIT` of its limit in the samples
+    (a short section between them, toppra's own grid), it says so and names the nearest.
+
+    Estimated from the timed samples, so a few per cent either way: q̇ = q' ṡ and
+    q̈ = q'' ṡ² + q' s̈ with q', q'' the derivatives of the joint path along s and
+    s̈ = ½ d(ṡ²)/ds (``res.timing.speed``).
+    """
+    prep, timing = res.prep, res.timing
+    data, names = prep.robot.data, prep.kinematics.joint_names
+    s = np.asarray(prep.path.s, float)
+    q = np.asarray(prep.kinematics.q, float)
+    sd = np.asarray(timing.speed, float)
+    if s.size < 3:
+        return {}
+    keep = np.concatenate([[True], np.diff(s) > _DS_MIN])     # repeated samples: no derivative
+    at = np.cumsum(keep) - 1
+    sk, qk, vk = s[keep], q[keep], sd[keep]
+    if sk.size < 3:
+        return {}
+    dq = np.gradient(qk, sk, axis=0)
+    ddq = np.gradient(dq, sk, axis=0)
+    sdd = 0.5 * np.gradient(vk ** 2, sk)
+    speed = (np.abs(dq * vk[:, None]) / np.asarray(data.velocity, float))[at]
+    acc = (np.abs(ddq * vk[:, None] ** 2 + dq * sdd[:, None])
+           / np.asarray(data.acceleration, float))[at]
+    path_acc = (np.abs(sdd) / float(res.limits.path_acc_max))[at]
+    out: dict[int, str] = {}
+    for r in res.section_rows:
+        if not r.get("robot_limited"):
+            continue
+        a, b = int(r["sample_start"]), int(r["sample_stop"])
+        if b <= a:
+            continue
+        v = speed[a:b].max(axis=0)
+        w = acc[a:b].max(axis=0)
+        j_v, j_a = int(np.argmax(v)), int(np.argmax(w))
+        joint = (f"{names[j_v]} speed {100 * v[j_v]:.0f} %" if v[j_v] >= w[j_a]
+                 else f"{names[j_a]} accel. {100 * w[j_a]:.0f} %")
+        p = float(path_acc[a:b].max())
+        nearest = (joint if max(v[j_v], w[j_a]) >= p else f"path accel. {100 * p:.0f} % ({joint})")
+        if max(v[j_v], w[j_a], p) < _NEAR_LIMIT:
+            nearest = f"none reached in the samples; nearest {nearest}"
+        out[int(r["index"])] = nearest
+    return out
+
+
+def section_engagement(res) -> dict[int, tuple[float, float]]:
+    """Largest a_e and a_p over each cut section [m], by its plan.json ``index``."""
+    e = res.prep.engagement
+    out: dict[int, tuple[float, float]] = {}
+    for r in res.section_rows:
+        a, b = int(r["sample_start"]), int(r["sample_stop"])
+        if r["kind"] != "cut" or b <= a:
+            continue
+        out[int(r["index"])] = (float(np.max(e.a_e[a:b])), float(np.max(e.a_p[a:b])))
+    return out

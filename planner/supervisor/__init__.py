@@ -4,7 +4,8 @@ envelope.
 One module per part: the detector (:mod:`~planner.supervisor.detector`), the section's stability
 characteristic (:mod:`~planner.supervisor.characteristic`), the override policy
 (:mod:`~planner.supervisor.policy`) and how it judges a chatter episode's moves
-(:mod:`~planner.supervisor.episode`), the check that the controller applies the override
+(:mod:`~planner.supervisor.episode`), the online deflection compensation through RSI ``RKorr``
+(:mod:`~planner.supervisor.compensation`), the check that the controller applies the override
 (:mod:`~planner.supervisor.link_watch`), the loop and its clock (:mod:`~planner.supervisor.loop`),
 a whole supervised run (:mod:`~planner.supervisor.session`), the event log, metrics and plot, and
 the simulated cut and cell used to test it without a robot (:mod:`~planner.supervisor.sim_cut`,
@@ -20,6 +21,15 @@ from planner.supervisor.characteristic import (
     margin_at,
     stabilising_direction,
 )
+from planner.supervisor.compensation import (
+    COMPENSATION_FORCES,
+    COMPENSATION_FRAMES,
+    CompensationConfig,
+    CompensationResult,
+    CompensationStatus,
+    DeflectionCompensator,
+    PlanCompensation,
+)
 from planner.supervisor.detector import (
     DEFAULT_WAVELET,
     EDGE_OCTAVES,
@@ -33,6 +43,15 @@ from planner.supervisor.detector import (
     control_limit,
     detail_filter,
     select_level,
+)
+from planner.supervisor.detector_iir import (
+    IirBandMonitor,
+    IirDetector,
+)
+from planner.supervisor.detectors import (
+    DEFAULT_DETECTOR,
+    DETECTORS,
+    make_detector,
 )
 from planner.supervisor.episode import (
     AT_FLOOR_TOL_PCT,
@@ -101,12 +120,20 @@ from planner.supervisor.sim_cut import (
 __all__ = [
     "AT_FLOOR_TOL_PCT",
     "BandMonitor",
+    "COMPENSATION_FORCES",
+    "COMPENSATION_FRAMES",
     "Characteristic",
+    "CompensationConfig",
+    "CompensationResult",
+    "CompensationStatus",
     "CutScenario",
     "CutTruth",
+    "DEFAULT_DETECTOR",
     "DEFAULT_SIM_DURATION_S",
     "DEFAULT_SIM_FS_HZ",
     "DEFAULT_WAVELET",
+    "DETECTORS",
+    "DeflectionCompensator",
     "Detector",
     "DetectorOutput",
     "EDGE_OCTAVES",
@@ -118,6 +145,8 @@ __all__ = [
     "FOLLOW_MIN_CHECKS",
     "FOLLOW_TOL_PCT",
     "GROWTH_RATIO",
+    "IirBandMonitor",
+    "IirDetector",
     "KVP_FOLLOW_S",
     "LevelChoice",
     "LinkFault",
@@ -127,6 +156,7 @@ __all__ = [
     "NO_REPORT_S",
     "OVERSAMPLE",
     "OperatorAlarm",
+    "PlanCompensation",
     "ROBOTS",
     "RSI_FOLLOW_CYCLES",
     "RunTrace",
@@ -154,6 +184,7 @@ __all__ = [
     "follow_time",
     "force_at",
     "judge",
+    "make_detector",
     "margin_at",
     "plot_run",
     "run_loop",

@@ -285,16 +285,32 @@ class Detector:
         self.choice = choice
         self.alpha_f = alpha_f
         self.l_c = control_limit(alpha_f)
-        self.monitor = BandMonitor(choice.level, wavelet)
-        self._model = BandMonitor(choice.level, wavelet)
+        self.wavelet = wavelet
+        self.monitor = self._new_monitor()
+        self._model = self._new_monitor()
         self._recent: collections.deque[tuple[float, float]] = collections.deque()
         self.sigma = sigma
+
+    def _new_monitor(self) -> BandMonitor:
+        """A fresh band filter (a subclass with another band filter overrides this)."""
+        return BandMonitor(self.choice.level, self.wavelet)
+
+    def gain(self, f_hz: float) -> float:
+        """|G(f)| of the band filter: band value per unit sinusoid amplitude at f [Hz]."""
+        g = self.monitor.filter
+        w = 2 * math.pi * f_hz / self.fs_hz
+        return float(abs(np.sum(g * np.exp(-1j * w * np.arange(g.size)))))
 
     def reset(self) -> None:
         """Forget the signal (after a gap or a bad chunk): band values resume after a warm-up."""
         self.monitor.reset()
         self._model.reset()
         self._recent.clear()
+
+    @property
+    def reason(self) -> str:
+        """The band in one sentence (the session's summary)."""
+        return f"DWT {self.wavelet} {self.choice.reason}"
 
     @property
     def ucl(self) -> float:
@@ -323,9 +339,9 @@ class Detector:
         v = np.asarray(values, dtype=float)
         if v.shape[0] < 2 * self.monitor.length:
             raise InputError("stable window", f"{v.shape[0]} samples; need at least "
-                             f"{2 * self.monitor.length} ({2 * self.warmup_s:.2f} s) for level "
-                             f"{self.choice.level}")
-        mon = BandMonitor(self.choice.level, self.monitor.wavelet)
+                             f"{2 * self.monitor.length} ({2 * self.warmup_s:.2f} s) for the band "
+                             f"filter (level {self.choice.level})")
+        mon = self._new_monitor()
         _, d = mon.push(np.arange(v.shape[0]) / self.fs_hz, v)
         sigma = float(np.sqrt(np.mean(d * d)))
         scale = float(np.max(np.abs(v))) if v.size else 0.0

@@ -14,9 +14,12 @@ wall time, the sockets staying real). Each iteration:
    and its CPU time with ``thread_time``);
 5. ``link.set_override`` when the integer override changes, every ``keepalive_s``, and at once
    when ``link.connected`` comes back after an outage;
-6. every new operator alarm of the supervisor goes to ``on_alarm`` (e.g. a stop request to the
+6. ``on_cycle(now, result, applied, link)``, if given: the online deflection compensation
+   (:class:`~planner.supervisor.compensation.PlanCompensation`: force → δ → ``set_correction``),
+   timed (``on_cycle_latency_s``); what it raises is counted in ``extra["on_cycle_errors"]``;
+7. every new operator alarm of the supervisor goes to ``on_alarm`` (e.g. a stop request to the
    controller), if given;
-7. the decision log is drained to its file (after the step, so no step waits for the disk).
+8. the decision log is drained to its file (after the step, so no step waits for the disk).
 
 When the run ends, :meth:`Supervisor.finish` closes an episode still open (escalated). Nothing
 here raises from inside the loop: a source or link that throws (they should not) is counted and
@@ -73,6 +76,7 @@ class LoopReport:
         step_cpu_s: CPU time of this thread in each step [s] (``time.thread_time``: the step's own
             cost, without preemption), shape (steps,).
         cycle_latency_s: duration of each whole iteration's work (read, step, command) [s].
+        on_cycle_latency_s: duration of each ``on_cycle`` call [s] (perf_counter; empty without).
         overruns: iterations whose work took longer than the cycle.
         link_writes: set_override calls; link_failures: calls answered not ok.
         link_downs: times the link went from up (connected and writes ok) to down.
@@ -93,6 +97,7 @@ class LoopReport:
     step_latency_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     step_cpu_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     cycle_latency_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    on_cycle_latency_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     overruns: int = 0
     link_writes: int = 0
     link_failures: int = 0
@@ -116,14 +121,17 @@ def run_loop(sup: Supervisor, source: SignalSource, link: RobotLink, duration_s:
              should_stop: Callable[[], bool] | None = None,
              keepalive_s: float = 0.5, freeze_gc: bool = True,
              follow_s: float | None = None,
-             on_alarm: Callable[[OperatorAlarm], None] | None = None) -> LoopReport:
+             on_alarm: Callable[[OperatorAlarm], None] | None = None,
+             on_cycle: Callable[[float, StepResult, float | None, RobotLink], Any] | None = None
+             ) -> LoopReport:
     """Run the supervisor for ``duration_s`` [s] (see the module docstring); return the report.
 
     ``follow_s`` is the time the controller has to show a commanded override [s] (None: the
     link's own, :func:`~planner.supervisor.link_watch.follow_time`, for RSI from the controller's
     cycle the link learns); ``on_alarm`` is called with
     every operator alarm as it is raised (it must return quickly; what it raises is counted in
-    ``extra["on_alarm_error"]``).
+    ``extra["on_alarm_error"]``); ``on_cycle`` is called every cycle after the override is
+    commanded (see the module docstring).
 
     With ``freeze_gc`` (default) the garbage collector is run once, every object alive at the
     start is frozen (``gc.freeze``) for the loop's duration, and the automatic collector is off
@@ -149,7 +157,7 @@ def run_loop(sup: Supervisor, source: SignalSource, link: RobotLink, duration_s:
                           clock=None if clock is time.monotonic else time.monotonic)
         return _loop(sup, source, link, duration_s, cycle_s, clock, sleep, before_step, on_step,
                      should_stop, keepalive_s, rep, step_lat, step_cpu, cyc_lat, n_max,
-                     young_gc=freeze_gc, watch=watch, on_alarm=on_alarm)
+                     young_gc=freeze_gc, watch=watch, on_alarm=on_alarm, on_cycle=on_cycle)
     finally:
         if freeze_gc:
             gc.unfreeze()
@@ -168,7 +176,8 @@ def _refused(link: Any) -> tuple[int, str]:
 
 def _loop(sup, source, link, duration_s, cycle_s, clock, sleep, before_step, on_step, should_stop,
           keepalive_s, rep, step_lat, step_cpu, cyc_lat, n_max, young_gc=False, watch=None,
-          on_alarm=None) -> LoopReport:
+          on_alarm=None, on_cycle=None) -> LoopReport:
+    hook_lat = np.zeros(n_max if on_cycle is not None else 0)
     max_samples = max(1, int(8 * cycle_s * max(sup.fs_hz, 1.0)) + 64)
     t_start = clock()
     rep.t_start = t_start
@@ -238,6 +247,14 @@ def _loop(sup, source, link, duration_s, cycle_s, clock, sleep, before_step, on_
                            "reason": ("controller link down: " + why) if not up
                            else "controller link back: override resent"})
             link_ok = up
+        if on_cycle is not None:
+            h0 = time.perf_counter()
+            try:
+                on_cycle(now, res, applied, link)
+            except Exception as e:  # noqa: BLE001 - a hook must not stop the loop
+                rep.extra["on_cycle_errors"] = rep.extra.get("on_cycle_errors", 0) + 1
+                rep.extra["on_cycle_error"] = repr(e)
+            hook_lat[k] = time.perf_counter() - h0
         n_alarms = _hand_on(sup, n_alarms, on_alarm, rep)
         sup.log.drain()  # the decisions of this step go to disk now, outside the step
         w1 = time.perf_counter()
@@ -270,6 +287,7 @@ def _loop(sup, source, link, duration_s, cycle_s, clock, sleep, before_step, on_
     rep.step_latency_s = step_lat[:k]
     rep.step_cpu_s = step_cpu[:k]
     rep.cycle_latency_s = cyc_lat[:k]
+    rep.on_cycle_latency_s = hook_lat[:k]
     return rep
 
 

@@ -50,9 +50,7 @@ class EpisodeMetrics:
 
 def band_gain(sup: Supervisor, f_hz: float) -> float:
     """|G(f)| of the supervisor's band filter: band value per unit sinusoid amplitude at f [Hz]."""
-    g = sup.detector.monitor.filter
-    w = 2 * math.pi * f_hz / sup.fs_hz
-    return float(abs(np.sum(g * np.exp(-1j * w * np.arange(g.size)))))
+    return sup.detector.gain(f_hz)
 
 
 def episode_metrics(sup: Supervisor, truth: CutTruth, chatter_hz: float, onset_s: float | None,

@@ -54,7 +54,7 @@ def plot_run(trace: RunTrace, path: str | os.PathLike, truth: CutTruth | None = 
     alarm = np.array([s == "alarm" for s in trace.status])
     if alarm.any():
         ax1.plot(t[alarm], np.asarray(trace.band)[alarm], "r.", ms=3, label="alarm")
-    ax1.set_ylabel("band")
+    ax1.set_ylabel("band [signal unit: N for a force]")
     ax1.legend(loc="upper left", fontsize=8)
     ax2 = fig.add_subplot(n, 1, 2, sharex=ax1)
     ax2.plot(t, trace.override, lw=1.0, label="commanded override")

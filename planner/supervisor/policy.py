@@ -19,19 +19,18 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Trajectory
 
 from planner.plan_file import Plan, PlanSection
+from planner.supervisor.ceiling import planned_speed_at
 from planner.supervisor.characteristic import (
     Characteristic,
     characteristic_of,
-    chatter_frequency,
     feed_limit_for_force,
     force_at,
     stabilising_direction,
 )
-from planner.supervisor.detector import Detector, select_level
+from planner.supervisor.detectors import detector_for_plan
 from planner.supervisor.episode import (
     AT_FLOOR_TOL_PCT,
     ESCALATE_PERIODS,
@@ -101,12 +100,8 @@ class Supervisor:
         self.cfg = cfg = config or SupervisorConfig()
         self.log = log if log is not None else EventLog(None)
         self.fs_hz = float(fs_hz)
-        cuts = [s for s in plan.sections if s.kind == "cut"] or list(plan.sections)
-        f_c = float(np.median([chatter_frequency(s, cfg.chatter_hz) for s in cuts]))
-        teeth = [s.tooth_frequency for s in cuts if s.tooth_frequency]
-        f_t = float(np.median(teeth)) if teeth else None
-        self.level = select_level(self.fs_hz, f_c, f_t)
-        self.detector = Detector(self.fs_hz, self.level, cfg.alpha_f, sigma, cfg.wavelet)
+        self.detector = detector_for_plan(plan, cfg, self.fs_hz, sigma)
+        self.level = self.detector.choice
         self.force_max_N = float(plan.limits.force_max)
         self.plausible_max = (cfg.plausible_max if cfg.plausible_max is not None
                               else 10.0 * self.force_max_N if math.isfinite(self.force_max_N)
@@ -303,11 +298,11 @@ class Supervisor:
             self._last_signal_now = now
         ov_applied = applied if applied is not None and math.isfinite(applied) else self._pos
         self._applied = ov_applied
-        tr.s_m += _planned_feed(tr.sec) * ov_applied / 100.0 * dt
+        tr.s_m += planned_speed_at(self.plan, tr.s_m, tr.sec) * ov_applied / 100.0 * dt
         prev_section = tr.section
         self._enter_section(tr.s_m)
         floor, cap = self._limits()
-        planned = _planned_feed(tr.sec)
+        planned = planned_speed_at(self.plan, tr.s_m, tr.sec)
         reason = ""
         status = self._status
         target = self._target

@@ -16,6 +16,12 @@ connect to) or ``rsi://BIND_HOST:PORT`` (the RSI server the controller sends to,
 σ of the stable band: :attr:`SessionConfig.sigma`, else from a simulated stable cut (``sim``), else
 learned from the first :attr:`SessionConfig.learn` seconds of the signal (the user vouches they are
 stable).
+
+Online deflection compensation (:attr:`SessionConfig.compensation`, ``cctmill supervise
+--compensate-rkorr``; docs/compensation.md): every cycle a
+:class:`~planner.supervisor.compensation.PlanCompensation` turns the mean force into an RSI
+``RKorr`` correction. It needs an RSI link and a 3-axis mean force: the simulated signal provides
+the model's (a simulated sensor); a recorded or streamed signal is one channel, so it is refused.
 """
 
 from __future__ import annotations
@@ -30,7 +36,9 @@ from urllib.parse import urlsplit
 import numpy as np
 
 from models.errors import InputError
+from planner.calibrate.supervisor_records import SectionRecorder, chain_on_cycle
 from planner.plan_file import Plan
+from planner.supervisor.compensation import CompensationConfig, PlanCompensation
 from planner.supervisor.episode import OperatorAlarm
 from planner.supervisor.event_log import EventLog
 from planner.supervisor.loop import LoopReport, VirtualClock, run_loop
@@ -78,6 +86,13 @@ class SessionConfig:
         fast: a simulated signal with a real link runs on a virtual clock (no sleeping).
         rsi_config: the controller's RSI ETHERNET configuration file (SENTYPE, correction element,
             override tags; :mod:`robot_io.links.rsi_config`) for an RSI link; None: the defaults.
+        compensation: online deflection compensation through RKorr (None: off, the default; its
+            ``cycle_s`` is taken from :attr:`cycle`).
+        compensation_offline: the program was exported with ``--compensate-deflection``: the
+            online part corrects only what the plan's δ did not.
+        records: append one cut record per section run to this JSON Lines file (the detector's
+            verdict; docs/calibration.md), None: none.
+        records_tool: the tool data name the records give (``cctmill tools``).
     """
 
     supervisor: SupervisorConfig = field(default_factory=SupervisorConfig)
@@ -93,6 +108,10 @@ class SessionConfig:
     sim_protocol: str = "kvp"
     fast: bool = False
     rsi_config: str | None = None
+    compensation: CompensationConfig | None = None
+    compensation_offline: bool = False
+    records: str | None = None
+    records_tool: str = ""
 
     def check(self) -> None:
         """Raises InputError naming the field that is out of range."""
@@ -129,6 +148,8 @@ class SessionSummary:
             section, reason): the run needs the operator (``cctmill supervise`` then exits with
             status 3).
         plot: the plot written, if any.
+        compensation: what the online compensation did (status counts, refused corrections,
+            total; with the simulated RSI controller also what it applied), None when off.
     """
 
     plan: str
@@ -146,6 +167,8 @@ class SessionSummary:
     episodes: list[dict[str, Any]]
     alarms: list[dict[str, Any]] = field(default_factory=list)
     plot: str | None = None
+    compensation: dict[str, Any] | None = None
+    records: dict[str, Any] | None = None
 
     def as_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {"plan": self.plan, "signal": self.signal, "robot": self.robot,
@@ -173,6 +196,10 @@ class SessionSummary:
         out["alarms"] = [dict(a) for a in self.alarms]
         if self.plot:
             out["plot"] = self.plot
+        if self.compensation is not None:
+            out["compensation"] = dict(self.compensation)
+        if self.records is not None:
+            out["records"] = dict(self.records)
         return out
 
 
@@ -203,7 +230,9 @@ def run_session(plan: Plan, source: Any, link: Any, config: SessionConfig, fs_hz
                 clock: Callable[[], float] = time.monotonic,
                 sleep: Callable[[float], None] = time.sleep,
                 before_step: Callable[[], None] | None = None,
-                on_alarm: Callable[[OperatorAlarm], None] | None = None) -> SessionSummary:
+                on_alarm: Callable[[OperatorAlarm], None] | None = None,
+                compensation: PlanCompensation | None = None,
+                controller: Any = None) -> SessionSummary:
     """Supervise ``plan`` with an open signal ``source`` and robot ``link`` (neither is closed).
 
     Args:
@@ -217,6 +246,8 @@ def run_session(plan: Plan, source: Any, link: Any, config: SessionConfig, fs_hz
         clock, sleep, before_step: the loop's clock (a :class:`VirtualClock` runs without waiting).
         on_alarm: called with every operator alarm as it is raised, inside the loop (return fast):
             e.g. a stop request the KRL program polls.
+        compensation: the online deflection compensation to run every cycle (None: none);
+            controller: the simulated RSI controller, whose applied correction the summary gives.
     """
     log = EventLog(config.log)
     try:
@@ -226,17 +257,28 @@ def run_session(plan: Plan, source: Any, link: Any, config: SessionConfig, fs_hz
         if duration is None:
             duration = getattr(source, "duration_s", None) or math.inf
         trace = RunTrace()
+        recorder = (SectionRecorder(plan, config.records, config.records_tool,
+                                    detector=config.supervisor.detector, log=config.log)
+                    if config.records else None)
         try:
             rep: LoopReport | None = run_loop(sup, source, link, duration, config.cycle, clock=clock,
                                               sleep=sleep, before_step=before_step, on_step=trace,
-                                              on_alarm=on_alarm)
+                                              on_alarm=on_alarm,
+                                              on_cycle=chain_on_cycle(compensation, recorder))
         except KeyboardInterrupt:
             rep = None
             sup.finish(clock())
+        if recorder is not None:
+            recorder.close(clock())
         log.flush()
     finally:
         log.close()
     summary = _summary(sup, rep, source, link, cut, scenario, config, signal, robot)
+    if compensation is not None:
+        summary.compensation = _compensation_summary(compensation, rep, link, controller)
+    if recorder is not None:
+        summary.records = {"file": str(recorder.path), "written": recorder.written,
+                           "errors": recorder.errors, "last_error": recorder.last_error}
     if config.plot:
         ch = sup.level
         plot_run(trace, config.plot, cut.truth if cut is not None else None,
@@ -251,7 +293,8 @@ def _summary(sup: Supervisor, rep: LoopReport | None, source: Any, link: Any,
              signal: str, robot: str) -> SessionSummary:
     ch = sup.level
     detector = {"level": ch.level, "band_hz": list(ch.band_hz), "chatter_hz": ch.chatter_hz,
-                "tooth_hz": ch.tooth_hz, "level_reason": ch.reason, "L_c": sup.detector.l_c,
+                "tooth_hz": ch.tooth_hz, "level_reason": ch.reason, "detector": sup.cfg.detector,
+                "detector_reason": sup.detector.reason, "L_c": sup.detector.l_c,
                 "sigma": sup.detector.sigma,
                 "ucl": sup.detector.ucl if sup.detector.sigma else None}
     metrics = []
@@ -282,6 +325,23 @@ def _summary(sup: Supervisor, rep: LoopReport | None, source: Any, link: Any,
         source_stats=source.stats.as_dict(), episodes=episodes,
         alarms=[{"t_s": a.t_s, "after_s": a.t_s - t0, "kind": a.kind, "section": a.section,
                  "reason": a.reason} for a in sup.alarms])
+
+
+def _compensation_summary(comp: PlanCompensation, rep: LoopReport | None, link: Any,
+                          controller: Any) -> dict[str, Any]:
+    out = comp.summary()
+    lat = rep.on_cycle_latency_s if rep is not None else np.zeros(0)
+    out["step_ms"] = ({"p50": _ms(float(np.percentile(lat, 50))), "p99": _ms(float(np.percentile(lat, 99))),
+                       "max": _ms(float(lat.max()))} if lat.size else None)
+    if rep is not None and "on_cycle_errors" in rep.extra:
+        out["errors"] = rep.extra["on_cycle_errors"]
+    sent = getattr(link, "correction_sent", None)
+    out["sent"] = list(sent) if sent is not None else None
+    ctl = getattr(controller, "correction", None)
+    if ctl is not None:
+        out["controller_applied"] = list(ctl.total)
+        out["controller_late"] = int(controller.stats.late)
+    return out
 
 
 def plan_name(plan: Plan) -> str:
@@ -392,6 +452,15 @@ def supervise(plan: Plan, signal: str, robot: str, config: SessionConfig,
     try:
         sim_signal = signal == "sim"
         fs = (config.fs_hz or DEFAULT_SIM_FS_HZ) if sim_signal else config.fs_hz
+        if config.compensation is not None:
+            if not sim_signal:
+                raise InputError("compensation", "online compensation needs the 3-axis mean force; a "
+                                                 "recorded or streamed signal is one channel: use "
+                                                 "--signal sim")
+            if not (robot.startswith("rsi://") or (robot == "sim" and config.sim_protocol == "rsi")):
+                raise InputError("compensation", "RKorr is an RSI correction: use --robot rsi://HOST:PORT "
+                                                 "or --robot sim --sim-protocol rsi")
+        controller = None
         if sim_signal and robot == "sim":
             from planner.supervisor.sim_cell import SimCell
 
@@ -399,6 +468,7 @@ def supervise(plan: Plan, signal: str, robot: str, config: SessionConfig,
                            start_s=config.start)
             closers.append(cell)
             source, link, cut, before_step = cell.source, cell.link, cell.cut, cell.daq
+            controller = cell.rsi_controller
         else:
             link = _open_link(robot, config, closers)
             if sim_signal:
@@ -418,8 +488,15 @@ def supervise(plan: Plan, signal: str, robot: str, config: SessionConfig,
             config = replace(config, sigma=simulated_sigma(plan, fs, scenario, config.supervisor))
         if config.duration is None and sim_signal:
             config = replace(config, duration=DEFAULT_SIM_DURATION_S)
+        comp = None
+        if config.compensation is not None:
+            # one step a loop cycle: the rate limit is counted in the session's cycle
+            comp = PlanCompensation(plan, None, replace(config.compensation, cycle_s=config.cycle),
+                                    offline=config.compensation_offline)
+            comp.set_force(comp.model_force)  # the simulated sensor: the model's mean force
         return run_session(plan, source, link, config, fs, signal=signal, robot=robot, cut=cut,
-                           scenario=scenario, clock=clock, sleep=sleep, before_step=before_step)
+                           scenario=scenario, clock=clock, sleep=sleep, before_step=before_step,
+                           compensation=comp, controller=controller)
     finally:
         for c in reversed(closers):
             try:

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from planner.plan_file import Plan, PlanSection
+from planner.supervisor.ceiling import planned_speed_at
 from planner.supervisor.characteristic import (
     Characteristic,
     characteristic_of,
@@ -167,7 +168,8 @@ class SimulatedCut:
             ov = 100.0
         if not math.isfinite(ov):
             ov = 100.0
-        target = sec.feed * ov / 100.0 if sec.kind != "rapid" else 0.0
+        target = (planned_speed_at(self.plan, self._s, sec) * ov / 100.0
+                  if sec.kind != "rapid" else 0.0)
         if self._feed is None:
             self._feed = target
         tau = max(sc.feed_tau_s, 1e-6)

@@ -61,6 +61,8 @@ class SupervisorConfig:
     Attributes:
         alpha_f: false-alarm rate per band value (L_c from Φ(L_c) = 1 − α_f/2).
         wavelet: PyWavelets name of the DWT.
+        detector: the chatter detector, a name in ``planner.supervisor.detectors.DETECTORS``
+            (``dwt`` the thesis's wavelet band, ``iir`` the faster band-pass with tooth notches).
         chatter_hz: expected chatter frequency when the plan has no natural frequencies [Hz].
         floor_pct: lowest override the supervisor commands.
         safe_pct: override after the signal is lost (None: the floor).
@@ -82,6 +84,7 @@ class SupervisorConfig:
 
     alpha_f: float = 6e-5
     wavelet: str = DEFAULT_WAVELET
+    detector: str = "dwt"
     chatter_hz: float = 11.0
     floor_pct: float = 20.0
     safe_pct: float | None = None

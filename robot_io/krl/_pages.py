@@ -1,6 +1,7 @@
 """Page layout of long KRL programs (private helper of ``robot_io.krl``, whose docstring states the
 rules): section folds as lines, packed into pages that break at section boundaries, a section
-longer than a page split before a LIN with its fold reopened and its ``$VEL.CP`` re-issued.
+longer than a page split before a LIN with its fold reopened and its ``$VEL.CP`` re-issued (the
+section's, then the last scaled one before the split, so a feed profile goes on at its speed).
 """
 
 from __future__ import annotations
@@ -40,7 +41,12 @@ def section_lines(s: PageSection, lo: int, hi: int, continued: bool) -> list[str
                      "$VEL.CP re-issued")
     elif s.comment:
         lines.append(s.comment)
-    lines += s.head_tail + s.body[lo:hi] + [f";ENDFOLD (section {s.number})"]
+    lines += s.head_tail
+    if continued:
+        last = next((x for x in reversed(s.body[:lo]) if x.startswith("$VEL.CP")), None)
+        if last is not None:
+            lines.append(last)
+    lines += s.body[lo:hi] + [f";ENDFOLD (section {s.number})"]
     return lines
 
 
@@ -59,7 +65,7 @@ def paginate(secs: list[PageSection], budget: int) -> list[list[str]]:
             continue
         i = 0
         while i < len(s.body):
-            overhead = len(section_lines(s, 0, 0, i > 0))
+            overhead = len(section_lines(s, i, i, i > 0))
             room = budget - len(cur) - overhead
             j = min(len(s.body), i + max(room, 0))
             if j < len(s.body):

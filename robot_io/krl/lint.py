@@ -18,8 +18,9 @@ Rules (the ``rule`` of a :class:`LintProblem`):
 ``fold``         ``;FOLD`` / ``;ENDFOLD`` balanced in each file
 ``motion``       LIN targets ``{X,Y,Z,A,B,C}`` numbers, CIRC two of them, PTP ``{A1..A6}`` or
                  ``$AXIS_ACT``; only ``C_DIS`` (LIN/CIRC) or ``C_PTP`` (PTP) after them
-``vel_cp``       every ``$VEL.CP`` value (a literal, or a REAL declared in a ``.dat``) has at least
-                 6 decimals and lies in (0, max]
+``vel_cp``       every ``$VEL.CP`` value (a literal, a REAL declared in a ``.dat``, or such a REAL
+                 times a literal scale, ``NAME_F003 * 0.873100``) has at least 6 decimals (the
+                 scale too) and lies in (0, max] (the product)
 ``feed_first``   every ``.src`` with a LIN/CIRC sets ``$VEL.CP`` before the first of them
 ``approx``       ``C_DIS`` only after ``$APO.CDIS`` was set (in this file or the calling main)
 ``page_size``    a ``.src`` has at most the controller's page lines (2000 KR C2, 1400 KR C4)
@@ -401,6 +402,16 @@ def _vel_cp(f: _File, i: int, value: str, stem: str,
             dat_names: dict[str, dict[str, tuple[str, str | None]]],
             globals_: dict[str, tuple[str, str | None]], vmax: float,
             out: list[LintProblem]) -> None:
+    scaled = re.fullmatch(r"([A-Za-z_$][A-Za-z0-9_$]*)\s*\*\s*(\S+)", value)
+    scale = 1.0
+    if scaled is not None:
+        value, s_text = scaled.group(1), scaled.group(2)
+        ms = _REAL_LIT.match(s_text)
+        if ms is None or len(ms.group(1)) < MIN_FEED_DECIMALS or not float(s_text) > 0:
+            out.append(LintProblem(f.name, i, "vel_cp", f"$VEL.CP scale {s_text!r} must be a "
+                                   f"decimal > 0 with at least {MIN_FEED_DECIMALS} decimals"))
+            return
+        scale = float(s_text)
     text = value
     if re.match(r"[A-Za-z_$]", value):
         decl = dat_names.get(stem, {}).get(value.upper()) or globals_.get(value.upper())
@@ -421,7 +432,8 @@ def _vel_cp(f: _File, i: int, value: str, stem: str,
     if len(m.group(1)) < MIN_FEED_DECIMALS:
         out.append(LintProblem(f.name, i, "vel_cp", f"$VEL.CP value {text} has "
                                f"{len(m.group(1))} decimals (at least {MIN_FEED_DECIMALS})"))
-    v = float(text)
+    v = float(text) * scale
     if not 0 < v <= vmax:
-        out.append(LintProblem(f.name, i, "vel_cp", f"$VEL.CP value {text} m/s is not in "
+        out.append(LintProblem(f.name, i, "vel_cp", f"$VEL.CP value {text}"
+                               + (f" x {scale:g}" if scaled else "") + f" m/s is not in "
                                f"(0, {vmax:g}]"))

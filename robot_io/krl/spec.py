@@ -109,9 +109,15 @@ class KrlMove:
         section: index of the move's section in the ``sections`` list, from 0 (moves of a
             section are contiguous and sections come in list order); the program numbers it from
             1 (the fold ``section 1``, ``NAME_F001``). The move's velocity is its section's
-            feed: a change of speed is a new section (with its own ``$VEL.CP`` and ``.dat`` value).
+            feed, or a fraction of it (``feed_scale``).
         aux: CIRC only: the auxiliary (via) pose, 6 values like ``target``.
         approx: ``C_DIS`` approximation (LIN/CIRC; PTPs are never approximated).
+        feed_scale: LIN/CIRC only: ``$VEL.CP = NAME_Fnnn * feed_scale`` is written before the
+            move (a feed profile: the section's ``.dat`` feed still retunes all of it); the
+            following moves of the section keep that speed until the next scaled move. ``None``:
+            no statement (the speed in force stays). A finite number > 0, written as the
+            shortest decimal with at least ``robot_io.krl.writer.SCALE_DECIMALS`` decimals that
+            reads back as the same double.
     """
 
     kind: str
@@ -119,6 +125,7 @@ class KrlMove:
     section: int
     aux: tuple[float, ...] | None = None
     approx: bool = True
+    feed_scale: float | None = None
 
 
 @dataclass(frozen=True)
@@ -257,6 +264,12 @@ def _check_moves(moves: Sequence[KrlMove], n_sections: int) -> None:
             _finite(m.aux, 6, "the auxiliary point", where)
         elif m.aux is not None:
             raise KrlError(where, f"only CIRC takes an auxiliary point, not {m.kind}")
+        fs = m.feed_scale
+        if fs is not None and (m.kind == "PTP" or isinstance(fs, bool)
+                               or not isinstance(fs, (int, float)) or not math.isfinite(fs)
+                               or fs <= 0):
+            raise KrlError(where, f"feed_scale {fs!r} must be a finite number > 0 on a LIN or "
+                           "CIRC (it multiplies the section's $VEL.CP)")
         s = m.section
         if isinstance(s, bool) or not isinstance(s, int) or not 0 <= s < n_sections:
             raise KrlError(where, f"its section {s!r} is not an index into the {n_sections} "

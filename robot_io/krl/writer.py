@@ -17,7 +17,8 @@ KUKA_IO.md §1 (authoritative on KRL rules):
   NAME PUBLIC``), written with at least :data:`FEED_DECIMALS` decimals and exactly (the literal
   reads back as the same double), so an engineer retunes a section there without touching the
   geometry. The names carry the program name, so two programs on one controller never share a
-  global.
+  global. A move with a ``feed_scale`` (a feed profile) gets ``$VEL.CP = NAME_Fnnn * 0.873100``
+  before it: the speed changes inside the section and the ``.dat`` value still retunes all of it.
 * **Motions**: ``LIN {X …,Y …,Z …,A …,B …,C …} C_DIS`` and ``CIRC {aux},{end} C_DIS`` with
   positions in mm and angles in degrees to :data:`POSITION_DECIMALS` / :data:`ANGLE_DECIMALS`
   decimals; ``PTP {A1 …,…,A6 …}`` (joint space, never approximated).
@@ -94,6 +95,7 @@ __all__ = [
     "MOVE_KINDS",
     "OVERRIDE_HOOKS",
     "POSITION_DECIMALS",
+    "SCALE_DECIMALS",
     "ascii_comment",
     "render_krl",
     "sanitize_identifier",
@@ -106,6 +108,8 @@ POSITION_DECIMALS = 4
 ANGLE_DECIMALS = 4
 #: Fewest decimals of a ``$VEL.CP`` value [m/s] (milling feeds are 0.0005–0.002 m/s).
 FEED_DECIMALS = 6
+#: Fewest decimals of a move's feed scale in ``$VEL.CP = NAME_Fnnn * scale`` [-].
+SCALE_DECIMALS = 6
 
 _CRLF = "\r\n"
 _RSI_CHECK = ("IF (CCT_RET <> RSIOK) THEN", "  HALT", "ENDIF")
@@ -169,6 +173,7 @@ def _section_title(k: int, sec: KrlSection) -> str:
 def _render_sections(spec: KrlProgramSpec, sections: Sequence[KrlSection],
                      moves: Sequence[KrlMove], feed_names: list[str]) -> list[PageSection]:
     out: list[PageSection] = []
+    lim_vel = CONTROLLERS[spec.controller].vel_cp_max
     marker = f"{spec.name}_SEC" if spec.override_hook != "none" else None
     by_section: list[list[KrlMove]] = [[] for _ in sections]
     for m in moves:
@@ -177,9 +182,20 @@ def _render_sections(spec: KrlProgramSpec, sections: Sequence[KrlSection],
         head = [f"{marker} = {k}"] if marker else []
         head.append(f"$VEL.CP = {feed_names[k - 1]} ; "
                     f"{real_literal(float(sec.feed_m_s), FEED_DECIMALS)} m/s, see {spec.name}.dat")
-        body = [_motion(m) for m in mv]
+        body: list[str] = []
+        breakable: list[bool] = []
+        for m in mv:
+            if m.feed_scale is not None:
+                if sec.feed_m_s * m.feed_scale > lim_vel:
+                    raise KrlError(f"section {k} feed", f"{sec.feed_m_s:.10g} m/s x scale "
+                                   f"{m.feed_scale:g} is above the $VEL.CP maximum {lim_vel:g} m/s")
+                body.append(f"$VEL.CP = {feed_names[k - 1]} * "
+                            f"{real_literal(float(m.feed_scale), SCALE_DECIMALS)}")
+                breakable.append(m.kind != "CIRC")     # a page starts here, not between the two
+            body.append(_motion(m))
+            breakable.append(m.kind != "CIRC" and m.feed_scale is None)
         out.append(PageSection(k, _section_title(k, sec), _comment(sec.comment) if sec.comment else "",
-                            head, body, [m.kind != "CIRC" for m in mv]))
+                            head, body, breakable))
     return out
 
 

@@ -1,4 +1,5 @@
-"""Simulated path speed of a controller under program override, shared by the simulated peers.
+"""Simulated path speed of a controller under program override, shared by the simulated peers, and
+the Cartesian path correction of an RSI controller (:class:`SimulatedCorrection`).
 
 The path speed follows ``programmed_speed × override / 100`` with a first-order lag (time constant
 ``tau``), evaluated in closed form at any time, so no thread has to integrate it. Setting
@@ -16,7 +17,19 @@ from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
-__all__ = ["SimulatedPathSpeed", "SimulatedPeer"]
+__all__ = [
+    "POSCORR_LIMIT_DEG",
+    "POSCORR_LIMIT_MM",
+    "SimulatedCorrection",
+    "SimulatedPathSpeed",
+    "SimulatedPeer",
+]
+
+#: KUKA's example POSCORR limits of the total Cartesian correction (KUKA_IO.md §2.3).
+POSCORR_LIMIT_MM = 5.0
+POSCORR_LIMIT_DEG = 5.0
+#: How a controller applies corrections (``RSI_ON(#RELATIVE)`` / ``RSI_ON(#ABSOLUTE)``).
+_MODES = ("relative", "absolute")
 
 
 class SimulatedPathSpeed:
@@ -111,3 +124,47 @@ class SimulatedPeer:
         with self._lock:
             s = self._stats
             self._stats = replace(s, **{k: getattr(s, k) + v for k, v in inc.items()})
+
+
+class SimulatedCorrection:
+    """The total Cartesian path correction (RKorr) of a controller running RSI.
+
+    ``relative`` (``RSI_ON(#RELATIVE)``) adds every received correction to the total; ``absolute``
+    holds the last received one. The total is capped per component at the POSCORR limits (±5 mm,
+    ±5° in KUKA's example), as the controller's correction object does: a value beyond them is
+    not applied beyond them (the real controller also stops the program at POSCORRMON; counted
+    here in :attr:`capped`).
+
+    Args:
+        mode: ``"relative"`` or ``"absolute"``.
+        limit_mm, limit_deg: POSCORR limits of the total [mm], [deg].
+    """
+
+    def __init__(self, mode: str = "relative", limit_mm: float = POSCORR_LIMIT_MM,
+                 limit_deg: float = POSCORR_LIMIT_DEG) -> None:
+        if mode not in _MODES:
+            raise ValueError(f"correction mode {mode!r} is not one of {', '.join(_MODES)}")
+        if not (limit_mm > 0 and limit_deg > 0):
+            raise ValueError("the POSCORR limits must be positive")
+        self.mode = mode
+        self._limits = (limit_mm,) * 3 + (limit_deg,) * 3
+        self._lock = threading.Lock()
+        self._total = [0.0] * 6
+        #: corrections that hit a POSCORR limit
+        self.capped = 0
+
+    def apply(self, values: tuple[float, ...] | list[float]) -> None:
+        """Apply one received correction (X, Y, Z [mm], A, B, C [deg])."""
+        with self._lock:
+            new = ([t + v for t, v in zip(self._total, values, strict=True)] if self.mode == "relative"
+                   else [float(v) for v in values])
+            out = [min(max(v, -lim), lim) for v, lim in zip(new, self._limits, strict=True)]
+            if out != new:
+                self.capped += 1
+            self._total = out
+
+    @property
+    def total(self) -> tuple[float, ...]:
+        """The correction applied to the path now (X, Y, Z [mm], A, B, C [deg])."""
+        with self._lock:
+            return tuple(self._total)

@@ -2,8 +2,10 @@
 
 The controller is the client: every cycle (4 ms ``#IPO_FAST`` or 12 ms ``#IPO``) it sends a ``<Rob>``
 telegram and expects a ``<Sen>`` reply, echoing its ``IPOC`` unchanged, inside the cycle
-(KUKA_IO.md §2.1–2.3). :class:`RsiServer` answers every telegram at once with a zero correction,
-the echoed ``IPOC`` and the override channel (``<OvProW>`` → ``MAP2OV_PRO`` → ``$OV_PRO``, §2.4);
+(KUKA_IO.md §2.1–2.3). :class:`RsiServer` answers every telegram at once with the correction
+(zero unless :meth:`RsiServer.set_correction` gave one: the supervisor's online deflection
+compensation), the echoed ``IPOC`` and the override channel (``<OvProW>`` → ``MAP2OV_PRO`` →
+``$OV_PRO``, §2.4);
 the shape of the reply (SENTYPE, correction element and its attributes, override tags) is the
 controller's ETHERNET configuration, :class:`~robot_io.links.rsi_config.RsiConfig`. The telegrams
 and their checks are :mod:`robot_io.links.rsi_telegram` (re-exported here).
@@ -33,11 +35,13 @@ import re
 import socket
 import threading
 import time
+from collections.abc import Sequence
 
 from robot_io.links.base import LinkError, LinkStats, LinkStatus, ProtocolError, StatsCounter, override_to_int
 from robot_io.links.rsi_config import RsiConfig, load_rsi_config
 from robot_io.links.rsi_telegram import (
     AXIS_LIMIT,
+    CORRECTION_DIGITS,
     DELAY_MAX,
     IPOC_MAX,
     MAX_PACKET_BYTES,
@@ -53,6 +57,7 @@ from robot_io.links.rsi_telegram import (
 
 __all__ = [
     "AXIS_LIMIT",
+    "CORRECTION_MODES",
     "DELAY_MAX",
     "IPOC_MAX",
     "MAX_PACKET_BYTES",
@@ -75,7 +80,11 @@ _log = logging.getLogger(__name__)
 SHORT_FIRST_PACKET_BYTES = 100
 #: Poll period of the server socket for the stop flag and the link timeout [s].
 _POLL_S = 0.02
+#: Replies whose relative correction is remembered, to send again when ``<Delay>`` says they were late.
+_RESEND_WINDOW = 16
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_.-]{0,63}$")
+#: How the controller applies a correction (``RSI_ON(#RELATIVE)`` or ``RSI_ON(#ABSOLUTE)``).
+CORRECTION_MODES = ("relative", "absolute")
 
 
 def _check_name(name: str, what: str) -> str:
@@ -152,7 +161,8 @@ class RsiServer:
             a free port (see :attr:`address`).
         sentype: ``Type`` of the reply root (must equal ``<SENTYPE>`` in the config).
         override_tag: element of the override channel (``OvProW`` → MAP2OV_PRO).
-        correction: ``"RKorr"``, ``"AKorr"`` or ``None``: the zero correction element sent.
+        correction: ``"RKorr"``, ``"AKorr"`` or ``None``: the correction element sent (zeros until
+            :meth:`set_correction`).
         dat: wrap replies in ``<Dat TaskType="b">``; ``None`` mirrors the robot's telegrams.
         initial_override_percent: sent until :meth:`set_override` is called, when the robot reports no
             override; when it does, its own value is echoed (no jump at start).
@@ -226,6 +236,14 @@ class RsiServer:
         self._stats = StatsCounter()
         self._lock = threading.Lock()
         self._override: int | None = None
+        ntags = len(cfg.correction_tags) if cfg.correction is not None else 0
+        self._corr: list[float] | None = None  # None: zeros
+        self._corr_mode = "relative"
+        self._corr_sent = [0.0] * ntags
+        self._corr_recent: collections.deque = collections.deque(maxlen=_RESEND_WINDOW)
+        self._last_delay: float | None = None
+        #: relative corrections sent again because the controller counted their reply late
+        self.corrections_resent = 0
         self._last_rob: RobTelegram | None = None
         self._last_rx = -math.inf
         self._up = False
@@ -266,6 +284,56 @@ class RsiServer:
             return LinkStatus(True, "sent in next reply", value)
         return LinkStatus(False, f"no <Rob> from the controller for {self.link_timeout_s:g} s; value kept "
                                  "for the next reply", value)
+
+    def set_correction(self, values: Sequence[float], mode: str = "relative") -> LinkStatus:
+        """The correction element's values from the next reply on (RKorr: X, Y, Z [mm], A, B, C
+        [deg]; one value per attribute of the configured correction element, in its order).
+
+        ``mode`` must match the controller's ``RSI_ON``: ``"relative"`` (``#RELATIVE``, what the KRL
+        export writes) adds every received correction to the path, so the values are an
+        *increment*: they are added to what is still to send and the next reply carries the sum
+        once, later replies zeros until the next call (no increment is sent twice, none is lost
+        when the loop and the controller run at different rates; the controller drops a reply
+        that misses its cycle and counts it in ``<Delay D>``, so when that count goes up the
+        dropped replies' corrections are sent again, :attr:`corrections_resent` — the controller's
+        behaviour the simulated one follows, UNVERIFIED on hardware). ``"absolute"`` (``#ABSOLUTE``)
+        holds the total offset: every reply carries the values until the next call. Limits are the
+        caller's and the controller's (POSCORR), not checked here. Never raises: ``percent`` of the
+        status is 0 when the values were taken (``ok`` then says whether the controller is
+        connected; taken while it is not, they go out with the first reply after), ``None`` when
+        not, and the reason says why (no correction element configured, a bad mode, non-finite
+        values). Values go out rounded to :data:`CORRECTION_DIGITS` decimals; in relative mode
+        the remainder stays pending, so the controller's sum follows the sum given.
+        """
+        tags = self.config.correction_tags if self.config.correction is not None else ()
+        if not tags:
+            return LinkStatus(False, "the RSI configuration has no correction element; nothing is sent")
+        if mode not in CORRECTION_MODES:
+            return LinkStatus(False, f"correction mode {mode!r} is not one of {', '.join(CORRECTION_MODES)}")
+        try:
+            vals = [float(v) for v in values]
+        except (TypeError, ValueError):
+            return LinkStatus(False, "correction values are not numbers; nothing sent")
+        if len(vals) != len(tags) or not all(math.isfinite(v) for v in vals):
+            return LinkStatus(False, f"<{self.config.correction}> takes {len(tags)} finite values "
+                                     f"({', '.join(tags)}); nothing sent")
+        with self._lock:
+            if mode == "relative":
+                if self._corr_mode != "relative" or self._corr is None:
+                    self._corr = [0.0] * len(tags)
+                self._corr = [a + b for a, b in zip(self._corr, vals, strict=True)]
+            else:
+                self._corr = vals
+            self._corr_mode = mode
+        return LinkStatus(self.connected, "sent in next reply" if self.connected
+                          else "no <Rob> from the controller; kept for the next reply", 0)
+
+    @property
+    def correction_sent(self) -> tuple[float, ...]:
+        """Sum of the correction values sent so far in relative mode, the values of the last reply
+        in absolute mode (RKorr: mm, deg); zeros before any."""
+        with self._lock:
+            return tuple(self._corr_sent)
 
     def read_override(self) -> float | None:
         with self._lock:
@@ -388,6 +456,26 @@ class RsiServer:
             _log.info("rsi server: the controller steps IPOC by %d ms a telegram, not the expected %d ms; "
                       "missed cycles are counted with the controller's step", step, want)
 
+    def _requeue_late(self, rob: RobTelegram, starting: bool) -> None:
+        """Under the lock: when the controller's ``<Delay D>`` (late replies so far) went up since
+        the last telegram, the last replies missed their cycle and the controller dropped them, so
+        their relative corrections go back to the pending sum (``#RELATIVE`` would lose them)."""
+        d = rob.poses.get("DELAY", {}).get("D")
+        last, self._last_delay = self._last_delay, d
+        if starting:
+            self._corr_recent.clear()
+            return
+        if d is None or last is None or not d > last:
+            return
+        for _ in range(min(int(round(d - last)), len(self._corr_recent))):
+            lost = self._corr_recent.pop()
+            if lost is None or not any(lost):
+                continue
+            self.corrections_resent += 1
+            pending = self._corr
+            self._corr = lost if pending is None else [a + b for a, b in zip(pending, lost, strict=True)]
+            self._corr_sent = [a - b for a, b in zip(self._corr_sent, lost, strict=True)]
+
     def _handle(self, data: bytes, addr: tuple[str, int], t_rx: float) -> None:
         with self._lock:
             starting = not self._up
@@ -405,9 +493,22 @@ class RsiServer:
             value = self._wanted_override() if cfg.override_tag is not None else None
             if value is None and cfg.override_tag is not None:
                 value = override_to_int(rob.override) if rob.override is not None else self._initial
+            self._requeue_late(rob, starting)
+            corr = self._corr
+            if corr is not None:
+                # the telegram carries CORRECTION_DIGITS decimals: what it cannot carry of an
+                # increment stays pending (sent once it adds up), so no rounding accumulates
+                corr = [round(v, CORRECTION_DIGITS) for v in corr]
+                if self._corr_mode == "relative":
+                    rest = [a - b for a, b in zip(self._corr, corr, strict=True)]
+                    self._corr = rest if any(rest) else None  # an increment is sent once
+                    self._corr_sent = [a + b for a, b in zip(self._corr_sent, corr, strict=True)]
+                else:
+                    self._corr_sent = list(corr)
+            self._corr_recent.append(corr if self._corr_mode == "relative" else None)
         dat = rob.dat if self.dat is None else self.dat
         reply = build_sen(rob.ipoc_text, value, cfg.sentype, cfg.override_tag or "", cfg.correction, dat,
-                          correction_tags=cfg.correction_tags)
+                          correction_tags=cfg.correction_tags, correction_values=corr)
         self._learn_step(rob, prev, starting)
         if self._lock_ip is None:
             self._lock_ip = addr[0]

@@ -3,8 +3,10 @@
 A CPython thread waits for the GIL for up to ``sys.getswitchinterval()`` (5 ms by default) while
 another thread of its process computes; an RSI reply is due within 4 ms. :class:`RsiProcessServer`
 runs :class:`~robot_io.links.rsi.RsiServer` in a child process (``spawn``) and talks to it through shared
-memory: ``set_override`` writes one shared integer the server reads for every reply, and the child
-copies its counters and the controller's state into a shared block every
+memory: ``set_override`` writes one shared integer the server reads for every reply,
+``set_correction`` sends the values over the pipe (the child hands them to its server at once:
+no message is lost or doubled, so ``#RELATIVE`` increments add up as in-process), and the child
+copies its counters, the controller's state and the correction sent into a shared block every
 :data:`SYNC_PERIOD_S`. The interface is :class:`~robot_io.links.base.RobotLink`, as for the
 in-process server; :attr:`stats`, :meth:`read_override` and :attr:`connected` lag the server by at
 most one sync period. ``benchmarks/link_latency.py`` measures both against a CPU-bound thread.
@@ -23,11 +25,12 @@ import os
 import pickle
 import threading
 import time
+from collections.abc import Sequence
 from multiprocessing import spawn
 from typing import Any
 
 from robot_io.links.base import LinkError, LinkStats, LinkStatus, override_to_int
-from robot_io.links.rsi import RobTelegram, RsiServer
+from robot_io.links.rsi import CORRECTION_MODES, RobTelegram, RsiServer
 from robot_io.links.rsi_config import RsiConfig, load_rsi_config
 
 __all__ = ["SYNC_PERIOD_S", "RsiProcessServer"]
@@ -40,6 +43,8 @@ _FIELDS = ("sent", "replies", "malformed", "late", "timeouts", "reconnects", "sh
            "missed_cycles", "last_rx", "up", "ov_pro", "foreign_dropped", "cycle_ms")
 _IDX = {name: i for i, name in enumerate(_FIELDS)}
 _ERR_BYTES = 256
+#: Room for the correction values the child reports (RKorr and AKorr have 6).
+_CORR_SLOTS = 12
 
 
 class _SharedOverrideServer(RsiServer):
@@ -54,7 +59,7 @@ class _SharedOverrideServer(RsiServer):
         return None if v < 0 else v
 
 
-def _child(kwargs: dict, cell: Any, block: Any, err: Any, pipe: Any) -> None:
+def _child(kwargs: dict, cell: Any, block: Any, err: Any, pipe: Any, corr: Any) -> None:
     """Child process: serve until the parent says stop or goes away."""
     try:
         srv = _SharedOverrideServer(cell, **kwargs)
@@ -75,12 +80,17 @@ def _child(kwargs: dict, cell: Any, block: Any, err: Any, pipe: Any) -> None:
                       srv.foreign_dropped, math.nan if srv.cycle_ms is None else srv.cycle_ms)
             for i, v in enumerate(values):
                 block[i] = v
+            for i, v in enumerate(srv.correction_sent[:_CORR_SLOTS]):
+                corr[i] = v
             msg = st.last_error.encode("ascii", "replace")[:_ERR_BYTES - 1]
             err.value = msg
             if pipe.poll(SYNC_PERIOD_S):
                 cmd = pipe.recv()
                 if cmd == "stop":
                     break
+                if isinstance(cmd, tuple) and cmd[0] == "correction":
+                    srv.set_correction(cmd[1], cmd[2])  # checked by the parent; no answer
+                    continue
                 if cmd == "times":
                     pipe.send(srv.reply_times())
                 elif cmd == "telegram":
@@ -120,10 +130,20 @@ class RsiProcessServer:
         self._block[_IDX["last_rx"]] = -math.inf
         self._block[_IDX["cycle_ms"]] = math.nan
         self._err = ctx.RawArray("c", _ERR_BYTES)
+        self._corr = ctx.RawArray("d", _CORR_SLOTS)
+        try:
+            shape = cfg if isinstance(cfg, RsiConfig) else RsiConfig.from_options(
+                kwargs.get("sentype", "ImFree"), kwargs.get("override_tag", "OvProW"),
+                kwargs.get("correction", "RKorr"))
+            self.correction = shape.correction
+            self._corr_tags = tuple(shape.correction_tags) if shape.correction is not None else ()
+        except (LinkError, ValueError, TypeError):  # a bad option: the child's server says which
+            self.correction, self._corr_tags = None, ()
         self._pipe, child_end = ctx.Pipe()
         self._pipe_lock = threading.Lock()
         kwargs.update(bind_host=bind_host, port=port)
-        self._proc = ctx.Process(target=_child, args=(kwargs, self._cell, self._block, self._err, child_end),
+        self._proc = ctx.Process(target=_child,
+                                 args=(kwargs, self._cell, self._block, self._err, child_end, self._corr),
                                  name=f"rsi-server-{port}", daemon=True)
         try:
             self._proc.start()
@@ -173,6 +193,37 @@ class RsiProcessServer:
             return LinkStatus(True, "sent in next reply", value)
         return LinkStatus(False, f"no <Rob> from the controller for {self.link_timeout_s:g} s; value kept "
                                  "for the next reply", value)
+
+    def set_correction(self, values: Sequence[float], mode: str = "relative") -> LinkStatus:
+        """As :meth:`robot_io.links.rsi.RsiServer.set_correction` (checked here, applied by the
+        child's server on receipt; ``percent`` 0: taken, ``None``: not)."""
+        tags = self._corr_tags
+        if self._closed:
+            return LinkStatus(False, "link closed")
+        if not tags:
+            return LinkStatus(False, "the RSI configuration has no correction element; nothing is sent")
+        if mode not in CORRECTION_MODES:
+            return LinkStatus(False, f"correction mode {mode!r} is not one of {', '.join(CORRECTION_MODES)}")
+        try:
+            vals = [float(v) for v in values]
+        except (TypeError, ValueError):
+            return LinkStatus(False, "correction values are not numbers; nothing sent")
+        if len(vals) != len(tags) or not all(math.isfinite(v) for v in vals):
+            return LinkStatus(False, f"<{self.correction}> takes {len(tags)} finite values "
+                                     f"({', '.join(tags)}); nothing sent")
+        try:
+            with self._pipe_lock:
+                self._pipe.send(("correction", vals, mode))
+        except (OSError, ValueError) as e:
+            return LinkStatus(False, f"RSI server process does not take it: {type(e).__name__}: {e}")
+        up = self.connected
+        return LinkStatus(up, "sent in next reply" if up
+                          else "no <Rob> from the controller; kept for the next reply", 0)
+
+    @property
+    def correction_sent(self) -> tuple[float, ...]:
+        """As :attr:`robot_io.links.rsi.RsiServer.correction_sent`, at most one sync period old."""
+        return tuple(self._corr[i] for i in range(min(len(self._corr_tags), _CORR_SLOTS)))
 
     def read_override(self) -> float | None:
         v = self._get("ov_pro")

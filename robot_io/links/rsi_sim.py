@@ -12,7 +12,11 @@ until the reply deadline (the end of the cycle), and counts:
 
 The override channel of a valid reply is applied to a simulated path speed
 (:class:`~robot_io.links._sim_peer.SimulatedPathSpeed`); a reply without it keeps the last value
-(HOLDON=1). Given the site's ETHERNET configuration (``config``, an
+(HOLDON=1). A Cartesian correction element (``RKorr`` X..C) of a valid reply is applied to the
+path (:class:`~robot_io.links._sim_peer.SimulatedCorrection`: added every cycle in the default
+``#RELATIVE`` mode, held in ``#ABSOLUTE``, the total capped at POSCORR ±5 mm / ±5°), and the
+``RIst`` the controller reports is the programmed path plus that correction, as on the real one.
+Given the site's ETHERNET configuration (``config``, an
 :class:`~robot_io.links.rsi_config.RsiConfig`), the controller sends the configured override
 read-back element (or none), reads the configured override channel (or none) and counts a reply
 whose ``Type`` is not the configured SENTYPE as malformed. After ``timeout_packets`` consecutive
@@ -29,12 +33,18 @@ import threading
 import time
 from dataclasses import dataclass, replace
 
-from robot_io.links._sim_peer import SimulatedPathSpeed, SimulatedPeer
+from robot_io.links._sim_peer import (
+    POSCORR_LIMIT_DEG,
+    POSCORR_LIMIT_MM,
+    SimulatedCorrection,
+    SimulatedPathSpeed,
+    SimulatedPeer,
+)
 from robot_io.links.base import LinkError, ProtocolError
 from robot_io.links.rsi import MAX_PACKET_BYTES, build_rob, parse_sen
 from robot_io.links.rsi_config import RsiConfig
 
-__all__ = ["RsiSimController", "RsiSimStats"]
+__all__ = ["POSCORR_LIMIT_DEG", "POSCORR_LIMIT_MM", "RsiSimController", "RsiSimStats", "SimulatedCorrection"]
 
 _log = logging.getLogger(__name__)
 
@@ -89,6 +99,9 @@ class RsiSimController(SimulatedPeer):
         config: the ETHERNET configuration the simulated controller runs (SENTYPE checked in
             replies, override channel and read-back tags); given, ``override_tag`` must be left at
             its default.
+        correction_mode: how RKorr is applied: ``"relative"`` (``RSI_ON(#RELATIVE)``, the KRL
+            export's) or ``"absolute"``.
+        correction_limit_mm, correction_limit_deg: POSCORR limits of the total correction [mm], [deg].
     """
 
     def __init__(self, server_addr: tuple[str, int], cycle_s: float = 0.004, timeout_packets: int = 100,
@@ -97,7 +110,9 @@ class RsiSimController(SimulatedPeer):
                  ipoc_start: int = 1_000_000, type_attr: str = "Type", dat: bool = False,
                  short_first_packet: bool = False, max_cycles: int | None = None,
                  bind_host: str = "127.0.0.1", keep_round_trips: int = 100_000,
-                 config: RsiConfig | None = None) -> None:
+                 config: RsiConfig | None = None, correction_mode: str = "relative",
+                 correction_limit_mm: float = POSCORR_LIMIT_MM,
+                 correction_limit_deg: float = POSCORR_LIMIT_DEG) -> None:
         if not (cycle_s > 0 and timeout_packets >= 1):
             raise LinkError("rsi-sim", "cycle_s must be positive and timeout_packets >= 1")
         if config is not None and override_tag != "OvProW":
@@ -116,6 +131,12 @@ class RsiSimController(SimulatedPeer):
         self.type_attr, self.dat, self.short_first_packet = type_attr, dat, short_first_packet
         self.max_cycles = max_cycles
         self.path = SimulatedPathSpeed(programmed_speed, tau, override_percent)
+        try:
+            #: the Cartesian path correction received through RKorr
+            self.correction = SimulatedCorrection(correction_mode, correction_limit_mm, correction_limit_deg)
+        except ValueError as e:
+            raise LinkError("rsi-sim", str(e)) from e
+        self._corr_tag = "RKORR" if config is None else (config.correction or "").upper()
         self._ipoc = int(ipoc_start)
         self._sent: collections.OrderedDict[int, float] = collections.OrderedDict()  # IPOC → send time
         self._lock = threading.Lock()
@@ -191,13 +212,22 @@ class RsiSimController(SimulatedPeer):
         return self._local
 
     # -- cycle -------------------------------------------------------------------------------------
+    def path_pose(self) -> tuple[float, ...]:
+        """The pose the controller commands now: programmed path plus correction (X, Y, Z [mm],
+        A, B, C [deg]), what ``RIst`` reports."""
+        s_mm = self.path.position() * 1000.0
+        base = (_START_POSE[0] + s_mm,) + _START_POSE[1:]
+        return tuple(p + d for p, d in zip(base, self.correction.total, strict=True))
+
     def _telegram(self, ipoc: int) -> bytes:
         s_mm = self.path.position() * 1000.0
         x, y, z, a, b, c = _START_POSE
+        dx, dy, dz, da, db, dc = self.correction.total
         with self._lock:
             delay = self._stats.late
         ov = self.path.override_percent if self.override_read_tag is not None else None
-        return build_rob(ipoc, (x + s_mm, y, z, a, b, c), _AXES_DEG, delay, ov, self.type_attr, self.dat,
+        return build_rob(ipoc, (x + s_mm + dx, y + dy, z + dz, a + da, b + db, c + dc), _AXES_DEG, delay,
+                         ov, self.type_attr, self.dat,
                          override_tag=self.override_read_tag or "OvPro")
 
     def _classify(self, data: bytes, ipoc: int, t_send: float, t_recv: float = 0.0) -> bool:
@@ -225,6 +255,9 @@ class RsiSimController(SimulatedPeer):
         rtt = t_recv - t_send
         if sen.override is not None and sen.override != int(self.path.override_percent):
             self.path.set_override(min(max(sen.override, 0), 100))
+        corr = sen.corrections.get(self._corr_tag)
+        if corr is not None and all(k in corr for k in ("X", "Y", "Z", "A", "B", "C")):
+            self.correction.apply(tuple(corr[k] for k in ("X", "Y", "Z", "A", "B", "C")))
         with self._lock:
             self._rtt.append(rtt)
             s = self._stats

@@ -37,6 +37,7 @@ from robot_io.links.rsi_config import AXIS_TAGS, POSE_TAGS
 
 __all__ = [
     "AXIS_LIMIT",
+    "CORRECTION_DIGITS",
     "DELAY_MAX",
     "IPOC_MAX",
     "MAX_PACKET_BYTES",
@@ -50,6 +51,8 @@ __all__ = [
     "parse_sen",
 ]
 
+#: Decimals of a non-zero correction value (RKorr: mm and deg): 0.1 µm, below any path resolution.
+CORRECTION_DIGITS = 4
 #: Largest datagram parsed [bytes]; a full ``<Rob>`` with poses, currents and Tech is about 1.2 kB.
 MAX_PACKET_BYTES = 4096
 #: Largest IPOC (an unsigned 64-bit counter, ros-industrial's ``unsigned long long``).
@@ -297,13 +300,16 @@ def parse_sen(data: bytes, override_tag: str | None = "OvProW",
 
 def build_sen(ipoc_text: str, override_percent: int | None, sentype: str = "ImFree",
               override_tag: str = "OvProW", correction: str | None = "RKorr", dat: bool = False,
-              estr: str | None = None, correction_tags: Sequence[str] | None = None) -> bytes:
-    """A ``<Sen>`` reply: zero correction, the override channel (omitted when ``None``), the IPOC echo.
+              estr: str | None = None, correction_tags: Sequence[str] | None = None,
+              correction_values: Sequence[float] | None = None) -> bytes:
+    """A ``<Sen>`` reply: the correction, the override channel (omitted when ``None``), the IPOC echo.
 
     ``ipoc_text`` is echoed verbatim (pass :attr:`RobTelegram.ipoc_text`); ``correction`` is the
-    correction element sent with zeros, ``None`` for none; its attributes are ``correction_tags``
+    correction element, ``None`` for none; its attributes are ``correction_tags``
     (default: X..C for ``"RKorr"``, A1..A6 for ``"AKorr"``; required for any other element, e.g.
-    ros-industrial's ``"AK"``); ``estr`` is free ASCII text shown on the HMI (XML-escaped).
+    ros-industrial's ``"AK"``), their values ``correction_values`` (one finite number per tag, in
+    the element's units: mm and deg for RKorr; default zeros, written ``0.0``); ``estr`` is free
+    ASCII text shown on the HMI (XML-escaped).
     """
     parts = [f'<Sen Type="{sentype}">']
     if dat:
@@ -317,7 +323,15 @@ def build_sen(ipoc_text: str, override_percent: int | None, sentype: str = "ImFr
                 else _POSE_KEYS if correction == "RKorr" else _AXIS_KEYS if correction == "AKorr" else None)
         if not tags:
             raise LinkError("rsi", f"correction element {correction!r} needs its correction_tags")
-        parts.append(f"<{correction} " + " ".join(f'{t}="0.0"' for t in tags) + "/>")
+        if correction_values is None:
+            parts.append(f"<{correction} " + " ".join(f'{t}="0.0"' for t in tags) + "/>")
+        else:
+            vals = [float(v) for v in correction_values]
+            if len(vals) != len(tags) or not all(math.isfinite(v) for v in vals):
+                raise LinkError("rsi", f"<{correction}> needs {len(tags)} finite correction values, got "
+                                       f"{len(vals)}")
+            parts.append(f"<{correction} " + " ".join(f'{t}="{v:.{CORRECTION_DIGITS}f}"'
+                                                      for t, v in zip(tags, vals, strict=True)) + "/>")
     if override_percent is not None:
         parts.append(f"<{override_tag}>{int(override_percent)}</{override_tag}>")
     parts.append(f"<IPOC>{ipoc_text}</IPOC>")

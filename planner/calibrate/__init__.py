@@ -1,0 +1,56 @@
+"""Calibration from cuts (docs/calibration.md): cut records, the fits, test cuts, a simulated truth.
+
+Lazy (PEP 562): importing the records format does not load the physics.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+__all__ = [
+    "Boundary",
+    "CalibrationContext",
+    "CalibrationResult",
+    "CoefficientFit",
+    "CutRecord",
+    "FitRefused",
+    "RecordError",
+    "SectionRecorder",
+    "StiffnessFit",
+    "TestCutsResult",
+    "TruthCell",
+    "calibrate",
+    "fit_boundary",
+    "fit_coefficients",
+    "fit_stiffness",
+    "identification_cuts",
+    "load_records",
+    "load_truth",
+    "margin_floors",
+    "propose_cuts",
+    "run_cuts",
+    "section_record",
+    "testcuts",
+    "write_calibration",
+    "write_records",
+]
+
+_WHERE = {
+    "Boundary": "fit_boundary", "CalibrationContext": "context", "CalibrationResult": "run",
+    "CoefficientFit": "fit_coefficients", "CutRecord": "records",
+    "FitRefused": "fit_coefficients", "RecordError": "records",
+    "SectionRecorder": "supervisor_records", "StiffnessFit": "fit_stiffness",
+    "TestCutsResult": "run", "TruthCell": "truth", "calibrate": "run",
+    "fit_boundary": "fit_boundary", "fit_coefficients": "fit_coefficients",
+    "fit_stiffness": "fit_stiffness", "identification_cuts": "testcuts",
+    "load_records": "records", "load_truth": "truth", "margin_floors": "fit_boundary",
+    "propose_cuts": "testcuts", "run_cuts": "truth", "section_record": "supervisor_records",
+    "testcuts": "run", "write_calibration": "run", "write_records": "records",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _WHERE:
+        return getattr(importlib.import_module(f"{__name__}.{_WHERE[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
