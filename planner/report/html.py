@@ -25,6 +25,7 @@ from models.errors import CctmillError
 from planner._atomic import atomic_path, write_text_atomic
 from planner.display import quantity
 from planner.report.plots import new_figure, save_figure
+from planner.sections import CUT
 
 __all__ = [
     "BINDING_COLOURS",
@@ -431,6 +432,27 @@ def _warnings_box(res) -> str:
     return "\n".join(out)
 
 
+def _posture_section(res) -> str:
+    """The rotation about the tool axis chosen along the path, per cut section, and what it gained
+    (the posture search's own estimate of the cut time); empty without a path posture."""
+    posture = getattr(res.prep, "posture", None)
+    if posture is None or posture.fallback:
+        return ""
+    from planner.posture import posture_by_section
+
+    cut = [(n, sec) for n, sec in enumerate(res.sections, start=1) if sec.kind == CUT]
+    rows = [[n, f"{r['offset_deg_mean']:.1f}", f"{r['offset_deg_min']:.1f} … {r['offset_deg_max']:.1f}",
+             f"{r['time_today_s']:.2f}", f"{r['time_chosen_s']:.2f}", f"{100 * r['gain']:.1f} %"]
+            for (n, _), r in zip(cut, posture_by_section(posture, [sec for _, sec in cut]), strict=True)]
+    return (f"<h2>Tool posture along the path</h2>\n<p class=\"note\">The rotation about the tool "
+            f"axis against the first-sample choice, per cut section (rate ≤ "
+            f"{posture.rate_bound * 180 / np.pi * 1e-3:.2f}°/mm); cut time by the posture search's "
+            f"estimate, today → chosen: {posture.time_today:.1f} → {posture.time_chosen:.1f} s "
+            f"({100 * posture.gain:.1f} % less).</p>\n"
+            + _table(["section", "rotation mean [deg]", "range [deg]", "cut time today [s]",
+                      "chosen [s]", "gain"], rows, more_after=50 if len(rows) > 60 else None))
+
+
 def write_report(res, folder: str | os.PathLike, sections: tuple[str, ...] = ()) -> dict[str, Path]:
     """Write the PNGs and ``report.html`` into ``folder``; return the paths by name. ``sections``:
     more HTML sections at the end (a placement study's, :mod:`planner.report.placement`)."""
@@ -462,6 +484,11 @@ def write_report(res, folder: str | os.PathLike, sections: tuple[str, ...] = ())
                                        f"{lim.deflection_tol * 1e3:g})",
                      "worst |δ·X_o| [mm]": f"{np.abs(ev.deflection_normal).max() * 1e3:.3f}",
                      "lowest margin [N/m]": f"{ev.margin.min():.3g}"})
+        if lim.compensate_deflection:
+            summ["worst held deflection [mm]"] = (
+                f"{ev.deflection_held.max() * 1e3:.3f} (compensated export: "
+                f"{lim.deflection_model_uncertainty:g}·|δ| + the change of δ along a LIN, against "
+                f"the tolerance {lim.deflection_tol * 1e3:g})")
     counts: dict[str, int] = {}
     for r in rows:
         counts[r["binding"]] = counts.get(r["binding"], 0) + 1
@@ -472,8 +499,9 @@ def write_report(res, folder: str | os.PathLike, sections: tuple[str, ...] = ())
 <html lang="en"><head><meta charset="utf-8"><title>cctmill plan: {html.escape(prep.job.job.name)}</title>
 <style>{_CSS}</style></head><body>
 <h1>cctmill plan — {html.escape(prep.job.job.name)}</h1>
-<p class="note">Every section's feed is the fastest its samples allow under every limit; the
-colour says what stops it going faster. Files: plan.json (sections), samples.npz (every sample).</p>
+<p class="note">The feed along the path is the fastest its samples allow under every limit (a
+feed profile, in sections whose feed scales it, or one feed per section); the colour says what
+stops each section going faster. Files: plan.json (sections), samples.npz (every sample).</p>
 {_warnings_box(res)}
 {_table(["", ""], [[k, v] for k, v in headline(res).items()], cls="head")}
 {_table(["", ""], [[k, v] for k, v in summ.items()])}
@@ -484,6 +512,7 @@ colour says what stops it going faster. Files: plan.json (sections), samples.npz
 cut by the planned feed, the binding constraint, the deflection or the chatter margin; hover a point
 for its sample, line, feed, binding and a_e/a_p.</p>
 {view}
+{_posture_section(res)}
 <h2>Along the path</h2>
 {_img(along)}
 <h2>Stability characteristic of the three tightest sections</h2>
