@@ -49,13 +49,21 @@ def plot_run(trace: RunTrace, path: str | os.PathLike, truth: CutTruth | None = 
     n = 3 if truth is not None else 2
     ax1 = fig.add_subplot(n, 1, 1)
     ucl = np.asarray(trace.ucl, dtype=float)
-    ax1.plot(t, trace.band, lw=0.7, label="|level-j detail| (largest per step)")
+    ax1.plot(t, trace.band, lw=0.7, label="|band| (largest per step)")
     ax1.plot(t, np.where(np.isfinite(ucl), ucl, np.nan), "r", lw=1.0, label="limit (UCL + transient)")
     alarm = np.array([s == "alarm" for s in trace.status])
     if alarm.any():
-        ax1.plot(t[alarm], np.asarray(trace.band)[alarm], "r.", ms=3, label="alarm")
+        ax1.plot(t[alarm], np.asarray(trace.band)[alarm], "r.", ms=3, label="alarm (band over the limit)")
+    held = np.array([s == "hold" for s in trace.status])
+    if held.any():   # the supervisor cannot act: escalated at the floor, a link fault, no signal
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], held.astype(int), [0]])))
+        for k, (a, b) in enumerate(zip(edges[::2], edges[1::2], strict=True)):
+            ax1.axvspan(t[a], t[min(b, t.size - 1)], color="0.6", alpha=0.25, lw=0,
+                        label="override held (escalated, link fault or no signal)"
+                        if k == 0 else None)
     ax1.set_ylabel("band [signal unit: N for a force]")
-    ax1.legend(loc="upper left", fontsize=8)
+    # above the panel, outside the data (the band fills the panel during chatter)
+    ax1.legend(loc="lower left", bbox_to_anchor=(0.0, 1.01), ncol=2, fontsize=7, frameon=False)
     ax2 = fig.add_subplot(n, 1, 2, sharex=ax1)
     ax2.plot(t, trace.override, lw=1.0, label="commanded override")
     if truth is not None and truth.t_s:
