@@ -36,11 +36,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 import toppra
-import toppra.algorithm as algo
-import toppra.constraint as constraint
 from scipy.optimize import Bounds, LinearConstraint, milp
 
-from planner.timing import KNOT_TOL, ROBOT_LIMITED, Timing, TimingError
+from planner.timing import ROBOT_LIMITED, Timing, TimingError, cycle_of, spline_grid, toppra_speed
 
 __all__ = [
     "LP_MARGIN",
@@ -86,43 +84,13 @@ class FeedProfile:
     lp_time: float
 
 
-def _grid(s: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, toppra.SplineInterpolator]:
-    keep = np.concatenate([[True], np.diff(s) > KNOT_TOL])
-    ss = s[keep]
-    if ss.size < 2:
-        raise TimingError("the path is shorter than one step; nothing to time")
-    return keep, ss, toppra.SplineInterpolator(ss, np.column_stack([q[keep], ss]))
-
-
-def cycle_of(s: np.ndarray, speed: np.ndarray) -> np.ndarray:
-    """Time at each grid point [s], (m,): constant path acceleration on each interval."""
-    dt = 2.0 * np.diff(s) / np.maximum(speed[:-1] + speed[1:], 1e-12)
-    return np.concatenate([[0.0], np.cumsum(dt)])
-
-
 def pointwise_bound(ss: np.ndarray, path: toppra.SplineInterpolator, ceiling: np.ndarray,
                     velocity_limit: np.ndarray, acceleration_limit: np.ndarray,
                     path_acc: float) -> np.ndarray:
     """toppra's path speed [m/s], (m,), under the ceiling (m,) [m/s], the joint speed (nq,)
     [rad/s] and acceleration (nq,) [rad/s²] limits and the path acceleration [m/s²]."""
-
-    def vlim(x: float) -> np.ndarray:
-        lim = np.concatenate([velocity_limit, [np.interp(x, ss, ceiling)]])
-        return np.column_stack([-lim, lim])
-
-    alim = np.concatenate([acceleration_limit, [path_acc]])
-    cons = [constraint.JointVelocityConstraintVarying(vlim),
-            constraint.JointAccelerationConstraint(np.column_stack([-alim, alim]))]
-    inst = algo.TOPPRA(cons, path, gridpoints=ss, parametrizer="ParametrizeConstAccel")
-    try:
-        _, sd, _ = inst.compute_parameterization(0.0, 0.0)
-    except Exception as e:  # toppra raises bare exceptions from its solvers
-        raise TimingError(f"toppra failed to time the path: {e}") from e
-    sd = np.asarray(sd, float)
-    if sd.size != ss.size or not np.all(np.isfinite(sd)):
-        raise TimingError("toppra found no feasible parametrisation: the ceilings or the joint "
-                          "limits leave no way through (check the limits in the robot data)")
-    return np.minimum(np.maximum(sd, 0.0), ceiling)
+    return np.minimum(toppra_speed(ss, path, ceiling, velocity_limit, acceleration_limit,
+                                   path_acc), ceiling)
 
 
 def jerk_limited(ss: np.ndarray, bound: np.ndarray, dq: np.ndarray, ddq: np.ndarray,
@@ -219,7 +187,7 @@ def profile_path(s: np.ndarray, q: np.ndarray, ceiling: np.ndarray, velocity_lim
     if not np.all(np.isfinite(ceiling)) or np.any(ceiling <= 0):
         raise TimingError("every sample needs a positive finite feed ceiling")
     t0 = time.perf_counter()
-    keep, ss, path = _grid(s, q)
+    keep, ss, path = spline_grid(s, q)
     c = ceiling[keep]
     bound = pointwise_bound(ss, path, c, velocity_limit, acceleration_limit, path_acc)
     t1 = time.perf_counter()
@@ -244,7 +212,7 @@ def profile_timing(s: np.ndarray, q: np.ndarray, ceiling: np.ndarray, velocity_l
     t0 = time.perf_counter()
     prof = profile_path(s, q, ceiling, velocity_limit, acceleration_limit, path_acc, path_jerk,
                         jerk)
-    _, ss, path = _grid(s, q)
+    _, ss, path = spline_grid(s, q)
     nq = q.shape[1]
     speed = np.minimum(np.interp(s, ss, prof.speed), ceiling)
     times = np.interp(s, ss, cycle_of(ss, prof.speed))

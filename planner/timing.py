@@ -32,8 +32,11 @@ __all__ = [
     "ROBOT_LIMITED_SECTION",
     "Timing",
     "TimingError",
+    "cycle_of",
     "shape_feed",
+    "spline_grid",
     "time_path",
+    "toppra_speed",
     "transition",
 ]
 
@@ -136,6 +139,59 @@ def shape_feed(s: np.ndarray, feed: np.ndarray, acc: float, jerk: float) -> np.n
     return np.minimum(bound, feed)
 
 
+def spline_grid(s: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray,
+                                                        toppra.SplineInterpolator]:
+    """The samples toppra times (``keep``: consecutive samples closer than :data:`KNOT_TOL`
+    merged), their arc lengths ``ss`` and the cubic spline of (q, s) over them.
+
+    Raises:
+        TimingError: fewer than two distinct samples.
+    """
+    keep = np.concatenate([[True], np.diff(s) > KNOT_TOL])
+    ss = s[keep]
+    if ss.size < 2:
+        raise TimingError("the path is shorter than one step; nothing to time")
+    return keep, ss, toppra.SplineInterpolator(ss, np.column_stack([q[keep], ss]))
+
+
+def toppra_speed(ss: np.ndarray, path: toppra.SplineInterpolator, bound: np.ndarray,
+                 velocity_limit: np.ndarray, acceleration_limit: np.ndarray,
+                 path_acc: float) -> np.ndarray:
+    """toppra's path speed ṡ ≥ 0 [m/s] at the grid ``ss`` (m,): the joint speed (nq,) [rad/s]
+    and acceleration (nq,) [rad/s²] limits, plus a virtual coordinate equal to s whose speed
+    limit is ``bound`` (m,) [m/s] and whose acceleration limit is ``path_acc`` [m/s²]. Rest to
+    rest.
+
+    Raises:
+        TimingError: toppra fails or finds no parametrisation.
+    """
+
+    def vlim(x: float) -> np.ndarray:
+        lim = np.concatenate([velocity_limit, [np.interp(x, ss, bound)]])
+        return np.column_stack([-lim, lim])
+
+    alim = np.concatenate([acceleration_limit, [path_acc]])
+    cons = [constraint.JointVelocityConstraintVarying(vlim),
+            constraint.JointAccelerationConstraint(np.column_stack([-alim, alim]))]
+    inst = algo.TOPPRA(cons, path, gridpoints=ss, parametrizer="ParametrizeConstAccel")
+    try:
+        _, sd, _ = inst.compute_parameterization(0.0, 0.0)
+    except Exception as e:  # toppra raises bare exceptions from its solvers
+        raise TimingError(f"toppra failed to time the path: {e}") from e
+    sd = np.asarray(sd, float)
+    if sd.size != ss.size or not np.all(np.isfinite(sd)):
+        raise TimingError("toppra found no feasible parametrisation: the path-speed bound or the "
+                          "joint limits leave no way through (check the limits in the robot data)")
+    return np.maximum(sd, 0.0)
+
+
+def cycle_of(s: np.ndarray, speed: np.ndarray) -> np.ndarray:
+    """Time at each grid point [s], (m,): trapezoids in 1/ṡ, the constant-acceleration form on
+    each interval."""
+    dt = 2.0 * np.diff(s) / np.maximum(speed[:-1] + speed[1:], 1e-12)
+    return np.concatenate([[0.0], np.cumsum(dt)])
+
+
 def time_path(s: np.ndarray, q: np.ndarray, feed: np.ndarray, velocity_limit: np.ndarray,
               acceleration_limit: np.ndarray, path_acc: float, path_jerk: float) -> Timing:
     """Time the path with toppra under the shaped feed bound and the joint limits.
@@ -153,37 +209,10 @@ def time_path(s: np.ndarray, q: np.ndarray, feed: np.ndarray, velocity_limit: np
     if not np.all(np.isfinite(feed)) or np.any(feed <= 0):
         raise TimingError("every sample needs a positive finite feed bound")
     bound = shape_feed(s, feed, path_acc, path_jerk)
-    keep = np.concatenate([[True], np.diff(s) > KNOT_TOL])
-    ss = s[keep]
-    if ss.size < 2:
-        raise TimingError("the path is shorter than one step; nothing to time")
+    keep, ss, path = spline_grid(s, q)
     nq = q.shape[1]
-    way = np.column_stack([q[keep], ss])
-    path = toppra.SplineInterpolator(ss, way)
-    b_keep = bound[keep]
-
-    def vlim(x: float) -> np.ndarray:
-        v = np.interp(x, ss, b_keep)
-        lim = np.concatenate([velocity_limit, [v]])
-        return np.column_stack([-lim, lim])
-
-    alim = np.concatenate([acceleration_limit, [path_acc]])
-    cons = [constraint.JointVelocityConstraintVarying(vlim),
-            constraint.JointAccelerationConstraint(np.column_stack([-alim, alim]))]
-    inst = algo.TOPPRA(cons, path, gridpoints=ss, parametrizer="ParametrizeConstAccel")
-    try:
-        _, sd_grid, _ = inst.compute_parameterization(0.0, 0.0)
-    except Exception as e:  # toppra raises bare exceptions from its solvers
-        raise TimingError(f"toppra failed to time the path: {e}") from e
-    sd_grid = np.asarray(sd_grid, float)
-    if sd_grid.size != ss.size or not np.all(np.isfinite(sd_grid)):
-        raise TimingError("toppra found no feasible parametrisation: the feed bound or the joint "
-                          "limits leave no way through (check the limits in the robot data)")
-    xd = np.maximum(sd_grid, 0.0)
-    # time by trapezoids in 1/ṡ, with the constant-acceleration form on each interval
-    ds = np.diff(ss)
-    dt = 2.0 * ds / np.maximum(xd[:-1] + xd[1:], 1e-12)
-    t_grid = np.concatenate([[0.0], np.cumsum(dt)])
+    xd = toppra_speed(ss, path, bound[keep], velocity_limit, acceleration_limit, path_acc)
+    t_grid = cycle_of(ss, xd)
     speed = np.interp(s, ss, xd)
     times = np.interp(s, ss, t_grid)
     dqds = path(s, 1)[:, :nq]

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from planner.plan_file import SAMPLE_ARRAYS, write_plan
+from robot_io.links.base import LinkStats, LinkStatus
 
 FEEDS_MM_S = np.linspace(1.0, 20.0, 39)
 NATURAL_HZ = (9.0, 13.4)  # sqrt = 10.98 Hz
@@ -99,3 +100,24 @@ def make_plan(folder: Path, sections: list[dict], step_m: float = 0.002,
 
 ONE_SECTION = [{"length_m": 0.5, "feed_mm_s": 8.0}]
 FEED_STEP = [{"length_m": 0.012, "feed_mm_s": 8.0}, {"length_m": 0.5, "feed_mm_s": 4.0}]
+
+
+class ApplyingLink:
+    """A robot link whose controller applies every override at once (the supervisor tests'
+    in-process controller)."""
+
+    stats = LinkStats()
+    connected = True
+
+    def __init__(self) -> None:
+        self.v = 100.0
+
+    def set_override(self, p: float) -> LinkStatus:
+        self.v = float(p)
+        return LinkStatus(True, "ok", int(p))
+
+    def read_override(self) -> float:
+        return self.v
+
+    def close(self) -> None:
+        pass

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from _plans import NATURAL_HZ, ONE_SECTION, TOOTH_HZ, make_plan
+from _plans import NATURAL_HZ, ONE_SECTION, TOOTH_HZ, ApplyingLink, make_plan
 
 from models.errors import InputError
 from planner.plan_file import load_plan
@@ -22,7 +22,6 @@ from planner.supervisor.loop import VirtualClock, run_loop
 from planner.supervisor.metrics import episode_metrics
 from planner.supervisor.session import simulated_sigma
 from planner.supervisor.sim_cut import CutScenario, SimulatedCut
-from robot_io.links.base import LinkStats, LinkStatus
 
 BENCH = str(Path(__file__).resolve().parents[1] / "benchmarks")
 if BENCH not in sys.path:
@@ -133,31 +132,13 @@ def test_iir_band_edges():
         iir_sos(FS, (20.0, 10.0))
 
 
-class _Link:
-    def __init__(self):
-        self.v = 100.0
-
-    def set_override(self, p):
-        self.v = float(p)
-        return LinkStatus(True, "ok", int(p))
-
-    def read_override(self):
-        return self.v
-
-    stats = LinkStats()
-    connected = True
-
-    def close(self):
-        pass
-
-
 def _supervised(tmp_path, detector: str):
     plan = load_plan(make_plan(tmp_path / detector, ONE_SECTION))
     cfg = SupervisorConfig(detector=detector)
     sc = CutScenario(onset_s=1.0, seed=3)
     sigma = simulated_sigma(plan, FS, sc, cfg)
     clk = VirtualClock()
-    link = _Link()
+    link = ApplyingLink()
     cut = SimulatedCut(plan, link.read_override, FS, sc, clock=clk)
     sup = Supervisor(plan, FS, sigma=sigma, config=cfg)
     run_loop(sup, cut, link, 2.2, 0.004, clock=clk, sleep=clk.sleep)

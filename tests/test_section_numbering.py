@@ -16,6 +16,7 @@ import re
 
 import numpy as np
 import pytest
+from _plans import ApplyingLink
 
 from planner.cli.plan import section_table
 from planner.outputs import KrlOptions, write_plan_outputs
@@ -24,7 +25,6 @@ from planner.supervisor.loop import VirtualClock
 from planner.supervisor.policy import SupervisorConfig
 from planner.supervisor.session import SessionConfig, run_session, simulated_sigma
 from planner.supervisor.sim_cut import CutScenario, SimulatedCut
-from robot_io.links.base import LinkStats, LinkStatus
 
 #: The simulated cut's sample rate [Hz] and how long before the chosen section it starts [s].
 FS_HZ = 10_000.0
@@ -133,23 +133,6 @@ def _chatter_section(plan: Plan):
     return best
 
 
-class _Link:
-    """A controller that applies every override at once."""
-
-    stats = LinkStats()
-    connected = True
-
-    def __init__(self) -> None:
-        self.v = 100.0
-
-    def set_override(self, p: float) -> LinkStatus:
-        self.v = float(p)
-        return LinkStatus(True, "ok", int(p))
-
-    def read_override(self) -> float:
-        return self.v
-
-
 def test_the_supervisor_log_and_summary_number_sections_as_the_plan(demo_out, tmp_path):
     out, _ = demo_out
     plan = load_plan(out)
@@ -158,7 +141,7 @@ def test_the_supervisor_log_and_summary_number_sections_as_the_plan(demo_out, tm
     # start in the section before, LEAD_S before the chosen one, so the run crosses a boundary
     start = max(prev.s_start, sec.s_start - LEAD_S * prev.feed)
     scenario = CutScenario(onset_s=ONSET_S, boundary_shift=1.0, margin_offset_N_per_m=offset)
-    clock, link = VirtualClock(), _Link()
+    clock, link = VirtualClock(), ApplyingLink()
     cut = SimulatedCut(plan, link.read_override, FS_HZ, scenario, clock=clock, start_s=start)
     log = tmp_path / "events.jsonl"
     config = SessionConfig(duration=2.0, start=start, log=str(log),

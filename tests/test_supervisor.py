@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 import pytest
-from _plans import FEED_STEP, ONE_SECTION, make_plan
+from _plans import FEED_STEP, ONE_SECTION, ApplyingLink, make_plan
 
 from planner.plan_file import load_plan
 from planner.supervisor import STATUSES, Supervisor, SupervisorConfig
@@ -19,7 +19,6 @@ from planner.supervisor.event_log import EventLog
 from planner.supervisor.link_watch import LinkFault
 from planner.supervisor.loop import VirtualClock, run_loop
 from planner.supervisor.sim_cut import CutScenario, SimulatedCut
-from robot_io.links.base import LinkStats, LinkStatus
 from robot_io.signals.base import SignalChunk
 from robot_io.signals.replay import ReplaySource
 
@@ -395,7 +394,7 @@ def test_on_signals_of_the_dynamics_model(tmp_path, capsys, ap_mm, chatters):
     plan = _plan(tmp_path, ONE_SECTION)
     sup = Supervisor(plan, src.fs_hz, sigma=None, learn_s=1.0,
                      config=SupervisorConfig(use_transient_model=False))  # plan force ≠ this cut's
-    rep = run_loop(sup, src, _Link(), src.duration_s, clock=clk, sleep=clk.sleep)
+    rep = run_loop(sup, src, ApplyingLink(), src.duration_s, clock=clk, sleep=clk.sleep)
     assert sup.level.level == 8 and sup.detector.sigma is not None
     monitored = sum(rep.status_counts.get(k, 0) for k in ("ok", "alarm", "quiet", "recover"))
     assert monitored * 0.004 > 1.0  # over a second of the record was judged
@@ -404,30 +403,12 @@ def test_on_signals_of_the_dynamics_model(tmp_path, capsys, ap_mm, chatters):
         assert sup.episodes[0].signal_start_s > 1.0  # after the learning window
 
 
-class _Link:
-    def __init__(self):
-        self.v = 100.0
-
-    def set_override(self, p):
-        self.v = float(p)
-        return LinkStatus(True, "ok", int(p))
-
-    def read_override(self):
-        return self.v
-
-    stats = LinkStats()
-    connected = True
-
-    def close(self):
-        pass
-
-
 def test_closed_loop_on_the_simulated_cut_with_a_decision_log(tmp_path):
     plan = _plan(tmp_path, ONE_SECTION)
     path = tmp_path / "events.jsonl"
     log = EventLog(path)
     clk = VirtualClock()
-    link = _Link()
+    link = ApplyingLink()
     cut = SimulatedCut(plan, link.read_override, FS, CutScenario(onset_s=1.5), clock=clk)
     sup = Supervisor(plan, FS, log=log, learn_s=1.0)
     rep = run_loop(sup, cut, link, 4.0, clock=clk, sleep=clk.sleep)

@@ -71,26 +71,12 @@ def _binding_colourscale(names: list[str], colours: dict[str, str]) -> list[list
 
 def _box_edges(x0: float, y0: float, x1: float, y1: float, z0: float, z1: float):
     """The 12 edges of a box as one polyline with gaps (None)."""
-    xs: list[float | None] = []
-    ys: list[float | None] = []
-    zs: list[float | None] = []
-    corners = [(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)]
-    for z in (z0, z1):
-        for x, y in corners:
-            xs.append(x)
-            ys.append(y)
-            zs.append(z)
-        xs.append(None)
-        ys.append(None)
-        zs.append(None)
-    for x, y in corners[:4]:
-        xs += [x, x, None]
-        ys += [y, y, None]
-        zs += [z0, z1, None]
-    return xs, ys, zs
+    return _outline_edges([(x0, y0), (x1, y0), (x1, y1), (x0, y1)], z0, z1)
 
 
 def _outline_edges(outline: list[tuple[float, float]], z0: float, z1: float):
+    """A prism over a closed outline, from z0 to z1: both outlines and the vertical edges, as one
+    polyline with gaps (None)."""
     xs: list[float | None] = []
     ys: list[float | None] = []
     zs: list[float | None] = []

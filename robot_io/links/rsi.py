@@ -69,6 +69,7 @@ __all__ = [
     "SenTelegram",
     "build_rob",
     "build_sen",
+    "correction_values",
     "parse_rob",
     "parse_sen",
 ]
@@ -85,6 +86,25 @@ _RESEND_WINDOW = 16
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_.-]{0,63}$")
 #: How the controller applies a correction (``RSI_ON(#RELATIVE)`` or ``RSI_ON(#ABSOLUTE)``).
 CORRECTION_MODES = ("relative", "absolute")
+
+
+def correction_values(values: Sequence[float], mode: str, element: str | None,
+                      tags: Sequence[str]) -> list[float] | LinkStatus:
+    """The correction ``values`` as floats, or the refusing status (no correction element, a
+    mode not in :data:`CORRECTION_MODES`, not numbers, not one finite value per attribute
+    ``tags`` of ``element``): the check of every ``set_correction``."""
+    if not tags:
+        return LinkStatus(False, "the RSI configuration has no correction element; nothing is sent")
+    if mode not in CORRECTION_MODES:
+        return LinkStatus(False, f"correction mode {mode!r} is not one of {', '.join(CORRECTION_MODES)}")
+    try:
+        vals = [float(v) for v in values]
+    except (TypeError, ValueError):
+        return LinkStatus(False, "correction values are not numbers; nothing sent")
+    if len(vals) != len(tags) or not all(math.isfinite(v) for v in vals):
+        return LinkStatus(False, f"<{element}> takes {len(tags)} finite values "
+                                 f"({', '.join(tags)}); nothing sent")
+    return vals
 
 
 def _check_name(name: str, what: str) -> str:
@@ -306,17 +326,9 @@ class RsiServer:
         the remainder stays pending, so the controller's sum follows the sum given.
         """
         tags = self.config.correction_tags if self.config.correction is not None else ()
-        if not tags:
-            return LinkStatus(False, "the RSI configuration has no correction element; nothing is sent")
-        if mode not in CORRECTION_MODES:
-            return LinkStatus(False, f"correction mode {mode!r} is not one of {', '.join(CORRECTION_MODES)}")
-        try:
-            vals = [float(v) for v in values]
-        except (TypeError, ValueError):
-            return LinkStatus(False, "correction values are not numbers; nothing sent")
-        if len(vals) != len(tags) or not all(math.isfinite(v) for v in vals):
-            return LinkStatus(False, f"<{self.config.correction}> takes {len(tags)} finite values "
-                                     f"({', '.join(tags)}); nothing sent")
+        vals = correction_values(values, mode, self.config.correction, tags)
+        if isinstance(vals, LinkStatus):
+            return vals
         with self._lock:
             if mode == "relative":
                 if self._corr_mode != "relative" or self._corr is None:

@@ -30,7 +30,7 @@ from multiprocessing import spawn
 from typing import Any
 
 from robot_io.links.base import LinkError, LinkStats, LinkStatus, override_to_int
-from robot_io.links.rsi import CORRECTION_MODES, RobTelegram, RsiServer
+from robot_io.links.rsi import RobTelegram, RsiServer, correction_values
 from robot_io.links.rsi_config import RsiConfig, load_rsi_config
 
 __all__ = ["SYNC_PERIOD_S", "RsiProcessServer"]
@@ -200,17 +200,9 @@ class RsiProcessServer:
         tags = self._corr_tags
         if self._closed:
             return LinkStatus(False, "link closed")
-        if not tags:
-            return LinkStatus(False, "the RSI configuration has no correction element; nothing is sent")
-        if mode not in CORRECTION_MODES:
-            return LinkStatus(False, f"correction mode {mode!r} is not one of {', '.join(CORRECTION_MODES)}")
-        try:
-            vals = [float(v) for v in values]
-        except (TypeError, ValueError):
-            return LinkStatus(False, "correction values are not numbers; nothing sent")
-        if len(vals) != len(tags) or not all(math.isfinite(v) for v in vals):
-            return LinkStatus(False, f"<{self.correction}> takes {len(tags)} finite values "
-                                     f"({', '.join(tags)}); nothing sent")
+        vals = correction_values(values, mode, self.correction, tags)
+        if isinstance(vals, LinkStatus):
+            return vals
         try:
             with self._pipe_lock:
                 self._pipe.send(("correction", vals, mode))
