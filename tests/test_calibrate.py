@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from models import cutting
+from models.errors import InputError
 from planner.calibrate.context import CalibrationContext
 from planner.calibrate.fit_coefficients import FitRefused, design_rows, fit_coefficients
 from planner.calibrate.fit_stiffness import fit_stiffness, joint_terms
@@ -161,6 +162,23 @@ def test_up_milling_at_one_radial_depth_identifies_all_six(ctx):
                                milling="up")
     fit = fit_coefficients(synthetic(ctx, cuts), ctx.tool, ctx.material)
     np.testing.assert_allclose(fit.values, ctx.material.coefficients() * TRUE_FACTOR, rtol=1e-7)
+
+
+def test_the_two_level_design_alternates_the_ends_and_narrows_the_edge_intervals(ctx):
+    kw = dict(rpm=12000.0, ae_mm=(25.4,), ap_mm=(2.0, 3.0), milling="slot")
+    ends = identification_cuts(ctx, POSES, 12, feeds="ends", fz_min_mm=0.025, **kw)
+    fz = np.array([r.feed_mm_s * 60.0 / (ctx.tool.flutes * r.rpm) for r in ends])
+    np.testing.assert_allclose(fz, [0.025, 0.25] * 6, rtol=1e-9)
+    spread = identification_cuts(ctx, POSES, 12, **kw)
+    widths = []
+    for cuts in (spread, ends):   # the same noise level, stated: the intervals are the design's
+        recs = synthetic(ctx, cuts, np.random.default_rng(5), rel=0.01, abs_n=0.5, with_std=True)
+        widths.append(fit_coefficients(recs, ctx.tool, ctx.material).relative_half_width())
+    assert np.all(widths[1][3:] < 0.7 * widths[0][3:])   # the edge terms: intercepts at c = 0
+    with pytest.raises(InputError, match="spread or ends"):
+        identification_cuts(ctx, POSES, 4, feeds="middle", **kw)
+    with pytest.raises(InputError, match="fz_min_mm"):
+        identification_cuts(ctx, POSES, 4, feeds="ends", fz_min_mm=0.3, **kw)
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
@@ -445,7 +463,6 @@ def test_value_of_information_aims_at_the_uncertain_boundary(ctx):
 
 
 def test_a_job_requiring_a_probability_needs_a_boundary(job_dir):
-    from models.errors import InputError
     from planner.calibrate.fit_boundary import job_margin_floor
 
     with open(job_dir / "job.toml", "a") as fh:

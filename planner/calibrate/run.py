@@ -218,7 +218,7 @@ def testcuts(job_file: str | Path, n: int, out_dir: str | Path,
              records: Sequence[str | Path] = (), truth_file: str | Path | None = None,
              design: str = "boundary", rpm: tuple[float, float] | None = None,
              ap_mm: tuple[float, float] | None = None, ae_mm: float | None = None,
-             seed: int = 0) -> TestCutsResult:
+             seed: int = 0, progress: bool = False) -> TestCutsResult:
     """Propose ``n`` test passes in the job's cell; write them as KRL and planned records; with a
     truth file, run them in the simulated true cell and write the records it gives.
 
@@ -252,7 +252,8 @@ def testcuts(job_file: str | Path, n: int, out_dir: str | Path,
     milling = job.engagement.milling if job.engagement.milling != "slot" else "down"
     if design == "identification":
         planned = identification_cuts(ctx, poses, n, rpm=rpm[1], ae_mm=(2 * ctx.tool.radius * 1e3,),
-                                      ap_mm=(ap_mm[0], (ap_mm[0] + ap_mm[1]) / 2), milling="slot")
+                                      ap_mm=(ap_mm[0], (ap_mm[0] + ap_mm[1]) / 2), milling="slot",
+                                      feeds="ends")
         how = "identification slots"
     else:
         boundary = None
@@ -276,6 +277,6 @@ def testcuts(job_file: str | Path, n: int, out_dir: str | Path,
     simulated = None
     if truth_file is not None:
         truth = load_truth(truth_file, CalibrationContext.nominal_of(job_file))
-        simulated = tuple(run_cuts(truth, list(planned), seed=seed))
+        simulated = tuple(run_cuts(truth, list(planned), seed=seed, progress=progress))
         files.append(write_records(out / "records.jsonl", simulated))
     return TestCutsResult(tuple(planned), how, tuple(files), simulated)

@@ -114,11 +114,16 @@ def job_test_poses(job, inset_mm: float = 20.0) -> list[tuple[float, ...]]:
 def identification_cuts(ctx: CalibrationContext, poses_deg: Sequence[Sequence[float]], n: int,
                         rpm: float, ae_mm: Sequence[float] = (6.0, 12.0),
                         ap_mm: Sequence[float] = (3.0, 5.0), milling: str = "down",
-                        pass_mm: float = 60.0) -> list[CutRecord]:
+                        pass_mm: float = 60.0, feeds: str = "spread",
+                        fz_min_mm: float | None = None) -> list[CutRecord]:
     """``n`` planned test passes for the coefficient and stiffness fits.
 
-    Feeds per tooth run log-spaced over the tool's chip-load range (or 0.02-0.12 mm); the radial
-    and axial depths alternate so that every pair meets low and high feeds; the poses cycle.
+    Feeds per tooth run over the tool's chip-load range (or 0.02-0.12 mm): log-spaced
+    (``feeds="spread"``, which also shows whether the force is linear in the chip) or at its two
+    ends, alternating (``feeds="ends"``: the D-optimal design for a straight line, which halves the
+    edge coefficients' error -- they are intercepts at c = 0, extrapolated from the lowest feed;
+    ``fz_min_mm`` below the tool's minimum shortens that extrapolation further). The radial and
+    axial depths alternate so that every pair meets low and high feeds; the poses cycle.
 
     Args:
         ctx: the cell.
@@ -134,9 +139,19 @@ def identification_cuts(ctx: CalibrationContext, poses_deg: Sequence[Sequence[fl
         lo, hi = tool.feed_per_tooth_min * 1e3, tool.feed_per_tooth_max * 1e3
     else:
         lo, hi = _FZ_DEFAULT_MM
-    fz = np.geomspace(lo, hi, n) if n > 1 else np.array([np.sqrt(lo * hi)])
-    # Interleave so consecutive passes are far apart in feed (drift does not alias with feed).
-    order = np.concatenate([np.arange(0, n, 2), np.arange(1, n, 2)[::-1]])
+    if fz_min_mm is not None:
+        if not 0.0 < fz_min_mm < hi:
+            raise InputError("fz_min_mm", f"must lie in (0, {hi:g}) mm, the chip-load maximum")
+        lo = float(fz_min_mm)
+    if feeds == "ends":
+        fz = np.where(np.arange(n) % 2 == 0, lo, hi).astype(float)
+        order = np.arange(n)     # already alternating low, high
+    elif feeds == "spread":
+        fz = np.geomspace(lo, hi, n) if n > 1 else np.array([np.sqrt(lo * hi)])
+        # Interleave so consecutive passes are far apart in feed (drift does not alias with feed).
+        order = np.concatenate([np.arange(0, n, 2), np.arange(1, n, 2)[::-1]])
+    else:
+        raise InputError("feeds", f"unknown feed design {feeds!r}: spread or ends")
     out = []
     for k, i in enumerate(order):
         q_deg = tuple(float(v) for v in poses_deg[k % len(poses_deg)])

@@ -152,7 +152,16 @@ def run_cut(truth: TruthCell, planned: CutRecord, rng: np.random.Generator) -> C
         duration_s=truth.duration_s, source=source)
 
 
-def run_cuts(truth: TruthCell, planned: list[CutRecord], seed: int = 0) -> list[CutRecord]:
-    """:func:`run_cut` for each planned record, with one seeded generator."""
+def run_cuts(truth: TruthCell, planned: list[CutRecord], seed: int = 0,
+             progress: bool = False) -> list[CutRecord]:
+    """:func:`run_cut` for each planned record, with one seeded generator (``progress``: a bar on
+    a terminal, a pass being a fraction of a second to a few seconds)."""
+    from planner._progress import bar
+
     rng = np.random.default_rng(seed)
-    return [run_cut(truth, r, rng) for r in planned]
+    out = []
+    with bar(len(planned), "simulated test cuts", progress, unit="cut", min_total=4) as pbar:
+        for r in planned:
+            out.append(run_cut(truth, r, rng))
+            pbar.update(1)
+    return out

@@ -62,6 +62,6 @@ def run(args: argparse.Namespace) -> int:
                       truth_file=args.simulate, design=args.design,
                       rpm=_range(args.rpm_range, "--rpm-range"),
                       ap_mm=_range(args.ap_range_mm, "--ap-range-mm"), ae_mm=args.ae_mm,
-                      seed=args.seed)
+                      seed=args.seed, progress=True)
     print(result.summary())
     return 0
