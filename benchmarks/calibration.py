@@ -33,6 +33,12 @@ The stability boundary
     (P > ½ called chatter) and Brier score, against the nominal model's own verdicts (eigen, the
     job's criterion; floquet) as the baseline.
 
+The critical depth (full run only)
+    At the job's 4000 rpm at three poses: the truth's critical a_p by bisection in the time-domain
+    model against where a boundary's P(chatter) crosses ½ — after 12 and 20 passes, space-filling
+    against a space-filling start of 8 plus passes proposed by value of information at the job's
+    speed (target: within 10 %; the proposals must need fewer).
+
 Run from the repository root: ``python benchmarks/calibration.py [--quick] [--json]``.
 """
 
@@ -61,7 +67,7 @@ from planner.calibrate.testcuts import (  # noqa: E402
     job_test_poses,
     propose_cuts,
 )
-from planner.calibrate.truth import TruthCell, run_cuts  # noqa: E402
+from planner.calibrate.truth import TruthCell, run_cut, run_cuts  # noqa: E402
 from planner.job import load_job  # noqa: E402
 
 JOB = ROOT / "planner" / "data" / "demo" / "demo_job.toml"
@@ -149,6 +155,9 @@ def run(log=None, quick: bool = False) -> dict:
     rec = out["recovered"]
     out["boundary"] = _boundary(ctx, poses, quick, log, rec["stiffness_scale"],
                                 np.asarray(rec["coefficients"], float))
+    if not quick:
+        out["critical"] = _critical(ctx, poses, log, ctx.params(
+            rec["stiffness_scale"], np.asarray(rec["coefficients"], float)))
     out["time_s"] = time.perf_counter() - t0
     return out
 
@@ -198,6 +207,103 @@ def _boundary(ctx: CalibrationContext, poses, quick: bool, log, stiffness_scale:
             "rows": {k: {"brier": v[0], "accuracy": v[1]} for k, v in rows.items()},
             "voi_p_chatter": [r.source["p_chatter"] for r in voi]}
 
+#: The boundary as the issue judges it: the critical a_p at the job's spindle speed at three poses
+#: (a_e 12.7 mm down milling, 0.1 mm per tooth); the truth's by bisection in the time-domain
+#: model, a boundary's where its P(chatter) crosses ½; N passes proposed (a space-filling third,
+#: then value of information in two rounds) against N space-filling passes.
+CRITICAL = {"rpm": 4000.0, "poses": 3, "ap_mm": (1.0, 8.0), "grid_mm": 0.05, "counts": (12, 20)}
+
+
+def _truth_critical_ap(truth: TruthCell, ctx: CalibrationContext, q, rpm: float, ae_mm: float,
+                       lo: float = 0.5, hi: float = 12.0, tol: float = 0.05) -> float:
+    """The true cell's smallest chattering a_p [mm] at a pose (bisection on the verdict)."""
+    from planner.calibrate.testcuts import _planned
+
+    rng = np.random.default_rng(0)
+
+    def chatters(ap: float) -> bool:
+        rec = _planned(ctx, q, ap, ae_mm, rpm, 0.1, "down", 60.0, "crit", "critical depth")
+        return run_cut(truth, rec, rng).verdict == "chatter"
+
+    if chatters(lo) or not chatters(hi):
+        return float("nan")
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if chatters(mid) else (mid, hi)
+    return 0.5 * (lo + hi)
+
+
+def _model_critical_ap(ctx: CalibrationContext, q, rpm: float, ae_mm: float, said, top: float,
+                       step: float) -> float:
+    """The smallest a_p [mm] on a grid where ``said(records) -> P(chatter)`` exceeds ½; inf when
+    none up to ``top``."""
+    from planner.calibrate.testcuts import _planned
+
+    depths = np.arange(0.5, top + step / 2, step)
+    recs = [_planned(ctx, q, ap, ae_mm, rpm, 0.1, "down", 60.0, "crit", "critical depth")
+            for ap in depths]
+    p = np.asarray(said(recs), float)
+    above = np.flatnonzero(p > 0.5)
+    if not len(above):
+        return float("inf")
+    i = int(above[0])
+    if i == 0:
+        return float(depths[0])
+    t = (0.5 - p[i - 1]) / (p[i] - p[i - 1])
+    return float(depths[i - 1] + t * step)
+
+
+def _critical(ctx: CalibrationContext, poses, log, cal_params) -> dict:
+    c, b = CRITICAL, BOUNDARY
+    truth = TruthCell(ctx, **TRUTH)
+    qs = poses[:c["poses"]]
+    true_ap = [_truth_critical_ap(truth, ctx, q, c["rpm"], b["ae_mm"]) for q in qs]
+    log(f"critical a_p at {c['rpm']:g} rpm in the truth: {np.round(true_ap, 2)} mm")
+
+    def boundary_says(fit):
+        def said(recs):
+            x = np.array([[criterion_margin(ctx, r, cal_params), r.ap_mm, r.rpm] for r in recs])
+            return fit.probability(x)
+        return said
+
+    def nominal_says(recs):
+        return [1.0 if criterion_margin(ctx, r) <= 0.0 else 0.0 for r in recs]
+
+    def errors(said):
+        got = [_model_critical_ap(ctx, q, c["rpm"], b["ae_mm"], said, 12.0, c["grid_mm"])
+               for q in qs]
+        return got, [abs(g / t - 1.0) for g, t in zip(got, true_ap, strict=True)]
+
+    rows = {}
+    nominal = errors(nominal_says)
+    rows["nominal model (eigen)"] = {"n": 0, "critical_ap_mm": nominal[0], "error": nominal[1]}
+    for n in c["counts"]:
+        n0 = max(8, n // 3)
+        random_recs = run_cuts(truth, boundary_cuts(ctx, qs, n, b["rpm"], c["ap_mm"], b["ae_mm"],
+                                                    seed=21), seed=21)
+        start = run_cuts(truth, boundary_cuts(ctx, qs, n0, b["rpm"], c["ap_mm"], b["ae_mm"],
+                                              seed=21), seed=21)
+        recs = list(start)
+        left, rnd = n - n0, 0
+        while left > 0:
+            k = (left + 1) // 2 if rnd == 0 else left
+            fit = fit_boundary(ctx, recs, cal_params)
+            # Proposed where the question is: at the job's spindle speed, a_p on a 0.25 mm grid.
+            recs += run_cuts(truth, propose_cuts(ctx, fit, qs, k, (c["rpm"], c["rpm"]),
+                                                 c["ap_mm"], b["ae_mm"], params=cal_params,
+                                                 grid=29),
+                             seed=30 + rnd)
+            left, rnd = left - k, rnd + 1
+        for name, data in ((f"{n} space-filling passes", random_recs),
+                           (f"{n} passes: {n0} space-filling + {n - n0} proposed", recs)):
+            try:
+                got = errors(boundary_says(fit_boundary(ctx, data, cal_params)))
+                rows[name] = {"n": n, "critical_ap_mm": got[0], "error": got[1]}
+            except Exception as e:   # a refused fit is a result too (too few of one verdict)
+                rows[name] = {"n": n, "refused": str(e)}
+            log(f"critical a_p, {name}: {rows[name]}")
+    return {"rpm": c["rpm"], "true_critical_ap_mm": true_ap, "rows": rows}
+
 
 def markdown(r: dict) -> str:
     """The result as the Markdown section docs/calibration.md quotes."""
@@ -228,8 +334,44 @@ def markdown(r: dict) -> str:
               "| predictor | accuracy | Brier score |", "|---|---|---|"]
     lines += [f"| {k} | {100 * v['accuracy']:.0f} % | {v['brier']:.3f} |"
               for k, v in bd["rows"].items()]
+    cr = r.get("critical")
+    if cr:
+        true_ap = cr["true_critical_ap_mm"]
+        lines += ["", f"Critical a_p at the job's {cr['rpm']:g} rpm at three poses (a_e "
+                  f"{BOUNDARY['ae_mm']:g} mm down milling, 0.1 mm per tooth); the truth's by "
+                  f"bisection in the time-domain model: "
+                  + ", ".join(f"{v:.2f}" for v in true_ap) + " mm. A boundary's is where its "
+                  "P(chatter) crosses ½ (target: within 10 %):", "",
+                  "| predictor | passes | critical a_p [mm] | error per pose | worst |",
+                  "|---|---:|---|---|---:|"]
+        for name, row in cr["rows"].items():
+            if "refused" in row:
+                lines.append(f"| {name} | {row['n']} | refused: {row['refused']} | | |")
+                continue
+            aps = ", ".join("none below 12" if not np.isfinite(v) else f"{v:.2f}"
+                            for v in row["critical_ap_mm"])
+            errs = [e for e in row["error"] if np.isfinite(e)]
+            worst = f"{100 * max(errs):.0f} %" if len(errs) == len(row["error"]) else "—"
+            per = ", ".join("—" if not np.isfinite(e) else f"{100 * e:.0f} %"
+                            for e in row["error"])
+            lines.append(f"| {name} | {row['n']} | {aps} | {per} | {worst} |")
     lines += ["", f"Run time {r['time_s']:.0f} s."]
     return "\n".join(lines) + "\n"
+
+
+def _critical_rows(r: dict) -> list[tuple[str, str, str, str]]:
+    cr = r.get("critical")
+    if not cr:
+        return []
+    out = []
+    for name, row in cr["rows"].items():
+        if row["n"] != max(CRITICAL["counts"]) or "refused" in row:
+            continue
+        worst = max(row["error"])
+        out.append((f"calibration: critical a_p at {cr['rpm']:g} rpm, three poses, {name}",
+                    f"worst error {100 * worst:.1f} %", "within 10 %",
+                    "met" if worst <= 0.10 else "NOT met"))
+    return out
 
 
 def summary_rows(r: dict) -> list[tuple[str, str, str, str]]:
@@ -249,6 +391,7 @@ def summary_rows(r: dict) -> list[tuple[str, str, str, str]]:
         ("calibration: joint stiffness scale, worst error", f"{100 * lv['worst_stiffness_error']:.1f} %",
          f"within {100 * STIFFNESS_TARGET:.0f} %",
          "met" if lv["worst_stiffness_error"] <= STIFFNESS_TARGET else "NOT met"),
+        *_critical_rows(r),
         ("calibration: stability boundary on fresh passes in the truth",
          f"accuracy {100 * best['accuracy']:.0f} % (nominal eigen "
          f"{100 * bd['nominal model, eigen verdict']['accuracy']:.0f} %)" if best else "n/a",
