@@ -34,10 +34,10 @@ The stability boundary
     job's criterion; floquet) as the baseline.
 
 The critical depth (full run only)
-    At the job's 4000 rpm at three poses: the truth's critical a_p by bisection in the time-domain
-    model against where a boundary's P(chatter) crosses ½ — after 12 and 20 passes, space-filling
-    against a space-filling start of 8 plus passes proposed by value of information at the job's
-    speed (target: within 10 %; the proposals must need fewer).
+    At the job's spindle speed (the demo: 4000 rpm) at three poses: the truth's critical a_p by
+    bisection in the time-domain model against where a boundary's P(chatter) crosses ½ — after
+    12 and 20 passes, space-filling against a space-filling start of 8 plus passes proposed by
+    value of information at the job's speed (target: within 10 %; the proposals must need fewer).
 
 Run from the repository root: ``python benchmarks/calibration.py [--quick] [--json]``.
 """
@@ -59,7 +59,11 @@ if str(ROOT) not in sys.path:
 from models import cutting  # noqa: E402
 from planner.calibrate.context import CalibrationContext  # noqa: E402
 from planner.calibrate.fit_boundary import criterion_margin, fit_boundary  # noqa: E402
-from planner.calibrate.fit_coefficients import COEFFICIENT_NAMES, fit_coefficients  # noqa: E402
+from planner.calibrate.fit_coefficients import (  # noqa: E402
+    COEFFICIENT_NAMES,
+    FitRefused,
+    fit_coefficients,
+)
 from planner.calibrate.fit_stiffness import fit_stiffness  # noqa: E402
 from planner.calibrate.testcuts import (  # noqa: E402
     boundary_cuts,
@@ -103,7 +107,9 @@ def run(log=None, quick: bool = False) -> dict:
     planned = identification_cuts(ctx, poses, N_CUTS, rpm=RPM, ae_mm=(25.4,), ap_mm=AP_MM,
                                   milling="slot", feeds=FEEDS, fz_min_mm=FZ_MIN_MM)
     seeds = QUICK_SEEDS if quick else SEEDS
+    fz_mm = sorted({round(r.feed_mm_s * 60.0 / (ctx.tool.flutes * r.rpm), 6) for r in planned})
     out: dict = {"quick": quick, "n_cuts": N_CUTS, "rpm": RPM, "ap_mm": list(AP_MM),
+                 "feed_per_tooth_mm": fz_mm,
                  "poses_deg": [list(p) for p in poses], "seeds": seeds, "levels": []}
     for label, sigma_abs, sigma_rel in NOISE[:1] if quick else NOISE:
         truth = TruthCell(ctx, **TRUTH,
@@ -157,7 +163,7 @@ def run(log=None, quick: bool = False) -> dict:
                                 np.asarray(rec["coefficients"], float))
     if not quick:
         out["critical"] = _critical(ctx, poses, log, ctx.params(
-            rec["stiffness_scale"], np.asarray(rec["coefficients"], float)))
+            rec["stiffness_scale"], np.asarray(rec["coefficients"], float)), job.spindle.rpm)
     out["time_s"] = time.perf_counter() - t0
     return out
 
@@ -211,7 +217,7 @@ def _boundary(ctx: CalibrationContext, poses, quick: bool, log, stiffness_scale:
 #: (a_e 12.7 mm down milling, 0.1 mm per tooth); the truth's by bisection in the time-domain
 #: model, a boundary's where its P(chatter) crosses ½; N passes proposed (a space-filling third,
 #: then value of information in two rounds) against N space-filling passes.
-CRITICAL = {"rpm": 4000.0, "poses": 3, "ap_mm": (1.0, 8.0), "grid_mm": 0.05, "counts": (12, 20)}
+CRITICAL = {"poses": 3, "ap_mm": (1.0, 8.0), "grid_mm": 0.05, "counts": (12, 20)}
 
 
 def _truth_critical_ap(truth: TruthCell, ctx: CalibrationContext, q, rpm: float, ae_mm: float,
@@ -253,8 +259,9 @@ def _model_critical_ap(ctx: CalibrationContext, q, rpm: float, ae_mm: float, sai
     return float(depths[i - 1] + t * step)
 
 
-def _critical(ctx: CalibrationContext, poses, log, cal_params) -> dict:
-    c, b = CRITICAL, BOUNDARY
+def _critical(ctx: CalibrationContext, poses, log, cal_params, rpm: float) -> dict:
+    """The critical-depth study at the job's spindle speed ``rpm`` [rev/min]."""
+    c, b = {**CRITICAL, "rpm": float(rpm)}, BOUNDARY
     truth = TruthCell(ctx, **TRUTH)
     qs = poses[:c["poses"]]
     true_ap = [_truth_critical_ap(truth, ctx, q, c["rpm"], b["ae_mm"]) for q in qs]
@@ -299,7 +306,7 @@ def _critical(ctx: CalibrationContext, poses, log, cal_params) -> dict:
             try:
                 got = errors(boundary_says(fit_boundary(ctx, data, cal_params)))
                 rows[name] = {"n": n, "critical_ap_mm": got[0], "error": got[1]}
-            except Exception as e:   # a refused fit is a result too (too few of one verdict)
+            except FitRefused as e:   # a refused fit is a result too (too few of one verdict)
                 rows[name] = {"n": n, "refused": str(e)}
             log(f"critical a_p, {name}: {rows[name]}")
     return {"rpm": c["rpm"], "true_critical_ap_mm": true_ap, "rows": rows}
@@ -308,7 +315,8 @@ def _critical(ctx: CalibrationContext, poses, log, cal_params) -> dict:
 def markdown(r: dict) -> str:
     """The result as the Markdown section docs/calibration.md quotes."""
     lines = [f"{r['n_cuts']} slot test cuts (a_p {' / '.join(f'{a:g}' for a in r['ap_mm'])} mm, "
-             f"{r['rpm']:g} rpm, feed per tooth {FZ_MIN_MM:g} and 0.25 mm alternating) at "
+             f"{r['rpm']:g} rpm, feed per tooth "
+             f"{' and '.join(f'{v:g}' for v in r['feed_per_tooth_mm'])} mm alternating) at "
              f"{len(r['poses_deg'])} poses over "
              f"the demo's stock; true cell: joint stiffness x{TRUTH['joint_scale']:g}, coefficients "
              f"{100 * (TRUTH['coefficient_factor'] - 1):+.0f} %, regeneration "
