@@ -28,6 +28,8 @@ from models.tooling import (
 #: origin) [mm]. A robot added to models/data/robots needs its line here (the test says so).
 PLACEMENT_MM = {
     "kr210_r2700_extra": ([1500.0, -60.0, 400.0], [320.0, 0.0, 0.0]),
+    "kr270_r2700_ultra": ([1500.0, -60.0, 400.0], [320.0, 0.0, 0.0]),
+    "kr500_r2830": ([2200.0, -60.0, 800.0], [320.0, 0.0, 0.0]),
 }
 
 #: A 40 mm straight cut, 2 mm deep: enough to plan a section, short enough to plan in well under
