@@ -14,7 +14,7 @@ from typing import Any
 
 from tqdm import tqdm
 
-__all__ = ["MIN_TOTAL", "bar", "on_terminal"]
+__all__ = ["MIN_TOTAL", "bar", "close_all", "on_terminal"]
 
 #: Fewer items than this finish in well under a second: no bar.
 MIN_TOTAL = 2000
@@ -33,3 +33,10 @@ def bar(total: int, desc: str, enabled: bool, unit: str = "sample",
     return tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, leave=False,
                 disable=not (enabled and total >= min_total and on_terminal()),
                 dynamic_ncols=True, mininterval=0.2)
+
+
+def close_all() -> None:
+    """Close (and clear) every bar still open: the CLI calls it before an error message, which a
+    bar left open by the exception would otherwise run into on the same line."""
+    for pbar in list(getattr(tqdm, "_instances", ())):
+        pbar.close()

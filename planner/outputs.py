@@ -58,9 +58,11 @@ class PlanOutputs:
 
 def write_plan_outputs(res: PlanResult, folder: str | os.PathLike, report: bool = True,
                        krl: KrlOptions | None = None,
-                       report_sections: tuple[str, ...] = ()) -> PlanOutputs:
+                       report_sections: tuple[str, ...] = (),
+                       progress: bool = False) -> PlanOutputs:
     """Write plan.json and samples.npz, then (``report``) report.html and its PNGs, then (``krl``)
-    the KRL program, into ``folder``.
+    the KRL program, into ``folder``. ``progress``: a bar on stderr over the report's files (a
+    long path's PNGs take seconds), on a terminal only.
 
     Raises:
         OutputError: a file cannot be written (names it).
@@ -74,7 +76,7 @@ def write_plan_outputs(res: PlanResult, folder: str | os.PathLike, report: bool 
     if report:
         from planner.report import write_report
 
-        out.files.update(write_report(res, folder, sections=report_sections))
+        out.files.update(write_report(res, folder, sections=report_sections, progress=progress))
     if krl is not None:
         from planner.export import export_plan
 
@@ -98,4 +100,4 @@ def run_plan_job(job: Job, folder: str | os.PathLike, method: str | None = None,
 
     check_output(folder, "folder")
     res = plan_job(job, method=method, safety_factor=safety_factor, progress=progress)
-    return write_plan_outputs(res, folder, krl=krl)
+    return write_plan_outputs(res, folder, krl=krl, progress=progress)

@@ -15,6 +15,7 @@ import numpy as np
 
 from models.cutting import MILLING_MODES, Tool
 from models.robot import Robot, load_robot
+from planner._progress import MIN_TOTAL, bar
 from planner.engagement import (
     SLIVER_TOL,
     Engagement,
@@ -144,24 +145,27 @@ def prepare(job: Job, progress: bool = False, posture: str | None = None) -> Pre
     t = time.perf_counter()
     eng = job.engagement
     feed_dir_wp = path.feed_dir_wp
-    if eng.source == "fixed":
-        a_e = (2 * tool.radius if eng.milling == "slot" else si.a_e)
-        e = fixed_engagement(len(path), a_e, si.a_p, eng.milling, feed_dir_wp,
-                             path.tool_axis_wp, path.cutting, tool_radius=tool.radius)
-    else:
-        z0, z1 = si.stock_z  # type: ignore[misc]
-        if si.stock_box is not None:
-            x0, y0, x1, y1 = si.stock_box
-            stock = Stock.box(x0, y0, x1, y1, z0, z1)
+    # the stock's engagement is one call of seconds on a long path: a bar names the step
+    with bar(1, f"engagement ({eng.source})", progress and eng.source != "fixed"
+             and len(path) >= MIN_TOTAL, unit="step", min_total=1):
+        if eng.source == "fixed":
+            a_e = (2 * tool.radius if eng.milling == "slot" else si.a_e)
+            e = fixed_engagement(len(path), a_e, si.a_p, eng.milling, feed_dir_wp,
+                                 path.tool_axis_wp, path.cutting, tool_radius=tool.radius)
         else:
-            stock = Stock(si.stock_outline, z0, z1)
-        if eng.source == "zmap":
-            e = zmap_engagement(path.position_wp, path.tool_axis_wp, path.cutting, tool.radius,
-                                stock, cell=eng.stock.zmap_cell(),  # type: ignore[union-attr]
-                                where=path.where, sliver=max(SLIVER_TOL, 2.0 * si.chord_tol))
-        else:
-            e = stock_engagement(path.position_wp, path.tool_axis_wp, path.cutting, tool.radius,
-                                 stock, where=path.where)
+            z0, z1 = si.stock_z  # type: ignore[misc]
+            if si.stock_box is not None:
+                x0, y0, x1, y1 = si.stock_box
+                stock = Stock.box(x0, y0, x1, y1, z0, z1)
+            else:
+                stock = Stock(si.stock_outline, z0, z1)
+            if eng.source == "zmap":
+                e = zmap_engagement(path.position_wp, path.tool_axis_wp, path.cutting, tool.radius,
+                                    stock, cell=eng.stock.zmap_cell(),  # type: ignore[union-attr]
+                                    where=path.where, sliver=max(SLIVER_TOL, 2.0 * si.chord_tol))
+            else:
+                e = stock_engagement(path.position_wp, path.tool_axis_wp, path.cutting, tool.radius,
+                                     stock, where=path.where)
     rot = base[:3, :3]
     engagement = Engagement(a_e=e.a_e, a_p=e.a_p, mode=e.mode, radial_dir=e.radial_dir @ rot.T,
                             engaged_angle=e.engaged_angle,

@@ -63,6 +63,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         check_outputs(args)     # before the work: a long plan is not lost to a typo in -o
         return int(args.run(args))
     except CctmillError as e:
+        from planner._progress import close_all
+
+        close_all()             # a bar the error interrupted: the message gets its own line
         print(f"cctmill {args.command}: error: {e}", file=sys.stderr)
         return 2
     except BrokenPipeError:

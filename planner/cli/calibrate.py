@@ -43,7 +43,8 @@ def run(args: argparse.Namespace) -> int:
     from planner.calibrate.run import calibrate, write_calibration
 
     fits = [f.strip() for f in args.fit.split(",") if f.strip()]
-    result = calibrate(args.records, args.job, fits)
+    # progress bars on stderr, on a terminal only (planner/_progress.py): silent in scripts
+    result = calibrate(args.records, args.job, fits, progress=not args.json)
     overlay, report = write_calibration(result, args.output)
     if args.json:
         print(json.dumps(result.report(), indent=2))

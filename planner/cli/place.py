@@ -93,7 +93,8 @@ def _cmd_place(args: argparse.Namespace) -> int:
         print("cctmill place: interrupted before any placement finished; nothing written",
               file=sys.stderr)
         return 130
-    files = write_place_outputs(study, spec, args.output, best_plan=not args.no_best_plan)
+    files = write_place_outputs(study, spec, args.output, best_plan=not args.no_best_plan,
+                                progress=not args.json)
     doc = json.loads(files["place"].read_text(encoding="utf-8"))
     if args.json:
         doc.pop("placements", None)

@@ -37,8 +37,10 @@ def _finite(v: Any) -> Any:
 
 
 def write_place_outputs(study: PlacementStudy, spec: JobSpec, folder: str | os.PathLike,
-                        best_plan: bool = True) -> dict[str, Path]:
+                        best_plan: bool = True, progress: bool = False) -> dict[str, Path]:
     """Write the study's files into ``folder`` (module docstring); return them by name.
+    ``progress``: bars on stderr while the best placement is planned again and its report
+    written (seconds on a long job), on a terminal only.
 
     Raises:
         OutputError: a file cannot be written.
@@ -55,8 +57,9 @@ def write_place_outputs(study: PlacementStudy, spec: JobSpec, folder: str | os.P
         from planner.outputs import write_plan_outputs
         from planner.plan import plan_job
 
-        res = plan_job(job_at(spec, best.placement))
+        res = plan_job(job_at(spec, best.placement), progress=progress)
         written = write_plan_outputs(res, out / "best",
-                                     report_sections=(placement_section(doc, files["heatmap"]),))
+                                     report_sections=(placement_section(doc, files["heatmap"]),),
+                                     progress=progress)
         files.update({f"best_{k}": v for k, v in written.files.items() if isinstance(v, Path)})
     return files

@@ -23,6 +23,7 @@ import numpy as np
 
 from models.errors import CctmillError
 from planner._atomic import atomic_path, write_text_atomic
+from planner._progress import MIN_TOTAL, bar
 from planner.display import quantity
 from planner.report.plots import new_figure, save_figure
 from planner.sections import CUT
@@ -453,12 +454,25 @@ def _posture_section(res) -> str:
                       "chosen [s]", "gain"], rows, more_after=50 if len(rows) > 60 else None))
 
 
-def write_report(res, folder: str | os.PathLike, sections: tuple[str, ...] = ()) -> dict[str, Path]:
+def write_report(res, folder: str | os.PathLike, sections: tuple[str, ...] = (),
+                 progress: bool = False) -> dict[str, Path]:
     """Write the PNGs and ``report.html`` into ``folder``; return the paths by name. ``sections``:
-    more HTML sections at the end (a placement study's, :mod:`planner.report.placement`)."""
-    out = Path(folder)
+    more HTML sections at the end (a placement study's, :mod:`planner.report.placement`).
+    ``progress``: a bar on stderr over the three files (seconds on a path of ``MIN_TOTAL`` samples
+    or more, :mod:`planner._progress`), on a terminal only."""
+    with bar(3, "report", progress and len(res.prep.path) >= MIN_TOTAL, unit="file",
+             min_total=1) as pbar:
+        return _write_report(res, Path(folder), sections, pbar)
+
+
+def _write_report(res, out: Path, sections: tuple[str, ...], pbar) -> dict[str, Path]:
+    pbar.set_postfix_str("plan_along_path.png")
     along = plot_along_path(res, out / "plan_along_path.png")
+    pbar.update()
+    pbar.set_postfix_str("plan_characteristics.png")
     chars = plot_characteristics(res, out / "plan_characteristics.png")
+    pbar.update()
+    pbar.set_postfix_str("report.html")
     prep, lim = res.prep, res.limits
     rows = res.section_rows
     summ = {"method": res.method, "cycle time [s]": f"{res.cycle_time:.2f}",
@@ -528,6 +542,7 @@ the KRL program (<code>;FOLD section N</code>, <code>NAME_F00N</code>) and the s
 </body></html>
 """
     report = write_text_atomic(out / "report.html", doc)
+    pbar.update()
     return {"report": report, "plot_along_path": along, "plot_characteristics": chars}
 
 
