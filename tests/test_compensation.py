@@ -1,6 +1,7 @@
 """Online deflection compensation through RSI RKorr (planner.supervisor.compensation): δ against the
 model, the limits, the holds, the increments, the RSI loopback to the simulated controller, the
-supervisor loop's wiring and the benchmark's quick wall."""
+supervisor loop's wiring, the job's calibrated model (overlay) and the benchmark's quick wall
+(calibrated first and not)."""
 
 from __future__ import annotations
 
@@ -25,6 +26,7 @@ from planner.supervisor import (
     DeflectionCompensator,
     PlanCompensation,
 )
+from planner.supervisor.compensation import job_parameters
 from robot_io.links.base import LinkStatus
 from robot_io.links.rsi import RsiServer
 from robot_io.links.rsi_sim import _START_POSE, RsiSimController
@@ -278,14 +280,83 @@ def test_supervised_session_sends_rkorr_to_the_simulated_controller(tmp_path, mo
         supervise(plan, "sim", "sim", replace(cfg, sim_protocol="kvp"))
 
 
-def test_benchmark_quick_wall_reduces_the_error():
+#: The wall's job (the benchmark's cell) as a job document: TCP 250 mm, the planned cut.
+_WALL_JOB = {"job": {"name": "wall", "toolpath": ["wall.nc"]}, "cell": {"tcp_mm": [250.0, 0.0, 0.0]},
+             "spindle": {"rpm": 4000.0}, "engagement": {"ae_mm": 3.0, "ap_mm": 10.0, "milling": "down"}}
+
+
+def test_a_calibration_overlay_changes_the_compensations_force_and_compliance(tmp_path, model):
+    from types import SimpleNamespace
+
+    from planner.calibrate.fit_coefficients import COEFFICIENT_NAMES
+    from planner.calibrate.overlay import write_overlay
+    from planner.ceilings import model_parameters
+    from planner.job import parse_job
+
+    robot, params, cut, q, _delta, force = model
+    k_fit = params.coefficients * 1.2
+    write_overlay(tmp_path / "cell.overlay.toml", {"joint_stiffness_scale": 0.8}, {},
+                  dict(zip(COEFFICIENT_NAMES, (float(v) for v in k_fit), strict=True)))
+    plain_job = parse_job(dict(_WALL_JOB), "job", tmp_path)
+    cal_job = parse_job({**_WALL_JOB, "calibration": {"overlay": "cell.overlay.toml"}}, "job", tmp_path)
+    plain, cal = job_parameters(plain_job, robot), job_parameters(cal_job, robot)
+    np.testing.assert_allclose(plain.vector(), params.vector(), rtol=1e-12)   # no overlay: the files' model
+    np.testing.assert_allclose(cal.joint_stiffness, 0.8 * params.joint_stiffness, rtol=1e-12)
+    np.testing.assert_allclose(cal.coefficients, k_fit, rtol=1e-12)
+    # the same model the planner's ceilings (and so the plan's offline δ) use
+    np.testing.assert_allclose(cal.vector(), model_parameters(cal_job, SimpleNamespace(robot=robot)).vector())
+    # the compensation follows the overlay: the same measured force, the same force angle (all six
+    # coefficients × 1.2) and so the same a_e, but 1.2 × the model's force and 1/0.8 × the compliance
+    cfg = CompensationConfig(max_rate_mm_s=1e4)
+    r0 = DeflectionCompensator(robot, plain, cut, cfg).step(force, q, FEED)
+    r1 = DeflectionCompensator(robot, cal, cut, cfg).step(force, q, FEED)
+    assert r0.status is r1.status is CompensationStatus.OK
+    assert r1.a_e == pytest.approx(r0.a_e, abs=1e-6)
+    np.testing.assert_allclose(r1.force, 1.2 * r0.force, rtol=1e-9)
+    np.testing.assert_allclose(r1.delta, 1.2 / 0.8 * r0.delta, rtol=2e-2)   # CCT: not exactly linear
+    np.testing.assert_allclose(r1.total[:3], 1.5 * np.asarray(r0.total[:3]), rtol=2e-2)
+    # along a plan: the job's overlay (job=) or what the plan records of it, else the files'
+    plan = _wall_plan(tmp_path, model)
+    np.testing.assert_allclose(PlanCompensation(plan, None).params.vector(), params.vector(), rtol=1e-12)
+    np.testing.assert_allclose(PlanCompensation(plan, None, job=cal_job).params.vector(), cal.vector(),
+                               rtol=1e-12)
+    recorded = replace(plan, model={**plan.model, "joint_stiffness_scale": 0.8,
+                                    "coefficients": [float(v) for v in k_fit]})
+    got = PlanCompensation(recorded, None).params
+    np.testing.assert_allclose(got.joint_stiffness, cal.joint_stiffness, rtol=1e-12)
+    np.testing.assert_allclose(got.coefficients, cal.coefficients, rtol=1e-12)
+    with pytest.raises(InputError, match="coefficients"):
+        PlanCompensation(replace(plan, model={"coefficients": [1.0, 2.0]}), None)
+
+
+@pytest.fixture(scope="module")
+def quick_bench():
     import compensation as bench
 
-    r = bench.run(quick=True)
+    return bench, bench.run(quick=True)
+
+
+def test_benchmark_quick_wall_reduces_the_error(quick_bench):
+    bench, r = quick_bench
     both = r["cases"]["mirror + online RKorr"]
     assert both["reduction_rms"] > 0.5
     assert both["reduction_rms"] <= r["cases"][bench.ORACLE]["reduction_rms"] + 0.02
     assert "NOT met" in bench.markdown(r) or r["verdict"]["target_met"]
+
+
+def test_benchmark_calibrating_first_reduces_the_error_more(quick_bench):
+    bench, r = quick_bench
+    cal = r["calibrated"]
+    assert cal["n_cuts"] == bench.QUICK_CAL_CUTS and len(cal["fits"]) == 1
+    # the test cuts recover the true cell's stiffness (0.8 × the model's) and the job reads it
+    assert abs(cal["fits"][0]["scale_error"]) < 0.05
+    assert cal["scale_in_job"] == pytest.approx(cal["fits"][0]["scale"], rel=1e-5)
+    calibrated = cal["cases"][bench.CAL_BOTH]["reduction_rms"]
+    assert calibrated > r["cases"][bench.BOTH]["reduction_rms"]
+    assert calibrated > r["cases"][bench.ORACLE]["reduction_rms"]   # beyond the uncalibrated bound
+    assert r["verdict"]["calibrated_reduction"] == calibrated
+    text = bench.markdown(r)
+    assert "calibrated first: mirror + online RKorr" in text and "Calibrate, then compensate" in text
 
 
 def test_cli_flags_make_the_compensation_config():

@@ -30,7 +30,11 @@ zero online, to +δ_plan on a mirror-compensated path) at the rate limit.
 
 :class:`PlanCompensation` drives it along a plan inside the supervisor loop (``run_loop(on_cycle=…)``,
 ``cctmill supervise --compensate-rkorr``): joints, cut and planned δ from the plan's sample at the
-dead-reckoned arc length, the correction to the link. docs/compensation.md has the benchmark.
+dead-reckoned arc length, the correction to the link. Its model is the job's
+(:func:`job_parameters`: the ``[cell] joint_stiffness_scale`` and ``[calibration]`` cutting
+coefficients a calibration overlay sets), not the robot and material files' as shipped: the
+compensation must use the calibrated model the plan's offline δ was computed with.
+docs/compensation.md has the benchmark.
 """
 
 from __future__ import annotations
@@ -55,6 +59,7 @@ __all__ = [
     "CompensationStatus",
     "DeflectionCompensator",
     "PlanCompensation",
+    "job_parameters",
 ]
 
 #: Frames a correction may be expressed in (the RSI POSCORR object's ``RefCorrSys``).
@@ -367,6 +372,55 @@ class DeflectionCompensator:
         self._table_key = (mode, flutes, radius)
 
 
+def job_parameters(job, robot: Robot | None = None) -> ModelParameters:
+    """The model a job asks for, as the planner takes it (:func:`planner.ceilings.model_parameters`).
+
+    The robot data's joint stiffness [N·m/rad] times ``[cell] joint_stiffness_scale``, the cutting
+    coefficients of ``[calibration] k_tc … k_ae`` (a calibration overlay's, merged in by the job
+    loader; :meth:`planner.job.Job.material_coefficients`) or else the material file's,
+    ``[model] cct`` and ``process_gain``, ``$TOOL``'s origin as the TCP and the spindle's mass and
+    centre of mass (the robot data's where the job gives none).
+
+    Args:
+        job: a validated :class:`planner.job.Job` (:func:`planner.job.load_job`).
+        robot: the job's robot, when already loaded (default: loaded from ``[cell] robot``).
+    """
+    from models import load_robot
+
+    robot = robot if robot is not None else load_robot(job.cell.robot)
+    data, si = robot.data, job.to_si()
+    return ModelParameters(
+        joint_stiffness=data.joint_stiffness * job.cell.joint_stiffness_scale,
+        coefficients=job.material_coefficients(), cct=job.model.cct, process_gain=job.model.process_gain,
+        tcp=np.asarray(si.tcp, float), gamma_window=si.gamma_window,
+        spindle_mass=data.spindle_mass if job.spindle.mass_kg is None else job.spindle.mass_kg,
+        spindle_com=data.spindle_com if si.spindle_com is None else si.spindle_com)
+
+
+def _plan_parameters(plan, robot: Robot) -> ModelParameters:
+    """The model of a plan without its job: the robot data's joint stiffness and the material
+    file's coefficients, each replaced by what the plan records of its job's calibration
+    (``model.joint_stiffness_scale``, ``model.coefficients`` [k_tc … k_ae], SI) where it does."""
+    from models import load_material
+
+    rec = plan.model or {}
+    try:
+        scale = float(rec.get("joint_stiffness_scale", 1.0))
+        coeffs = rec.get("coefficients")
+        coeffs = np.asarray(load_material(plan.material).coefficients() if coeffs is None else coeffs,
+                            float).reshape(-1)
+    except (TypeError, ValueError) as e:
+        raise InputError("compensation", f"the plan's model record is malformed: {e}") from e
+    if not (math.isfinite(scale) and scale > 0):
+        raise InputError("compensation", f"the plan's joint_stiffness_scale {scale!r} is not positive")
+    if coeffs.shape != (6,) or not np.all(np.isfinite(coeffs)):
+        raise InputError("compensation", "the plan's model.coefficients must be six numbers k_tc .. k_ae")
+    data = robot.data
+    return ModelParameters(joint_stiffness=data.joint_stiffness * scale, coefficients=coeffs,
+                           cct=bool(rec.get("cct", True)), tcp=np.asarray(plan.tool_xyz, float),
+                           spindle_mass=data.spindle_mass, spindle_com=data.spindle_com)
+
+
 def _wrap(a: np.ndarray) -> np.ndarray:
     """Angles wrapped to (−π, π] [rad]."""
     return np.arctan2(np.sin(a), np.cos(a))
@@ -387,24 +441,23 @@ class PlanCompensation:
     held, counted in ``link_failures``); nothing raises out of :meth:`__call__`.
 
     A ``"base"`` correction is given in the plan's ``$BASE`` axes (POSCORR ``RefCorrSys`` #BASE).
-    The model: the plan's robot, material, tool and ``$TOOL``, the robot file's joint stiffness
-    (a plan does not record the job's ``joint_stiffness_scale``: give ``params`` to use another).
+    The model, first given first: ``params``; the ``job`` the plan was made from
+    (:func:`job_parameters`: its calibration overlay's joint stiffness scale and cutting
+    coefficients, what the plan's offline δ was computed with); else the plan's robot, material
+    and ``$TOOL`` with what the plan records of its job's calibration (``model.joint_stiffness_scale``,
+    ``model.coefficients``; without them the robot and material files' values as shipped).
     """
 
     def __init__(self, plan, force, config: CompensationConfig | None = None, offline: bool = False,
-                 robot: Robot | None = None, params: ModelParameters | None = None) -> None:
-        from models import load_material, load_robot
+                 robot: Robot | None = None, params: ModelParameters | None = None, job=None) -> None:
+        from models import load_robot
         from robot_io.krl.frames import abc_to_matrix
 
         self.robot = robot if robot is not None else load_robot(plan.robot)
         smp = plan.samples
         if params is None:
-            data = self.robot.data
-            params = ModelParameters(joint_stiffness=data.joint_stiffness,
-                                     coefficients=load_material(plan.material).coefficients(),
-                                     cct=bool(plan.model.get("cct", True)),
-                                     tcp=np.asarray(plan.tool_xyz, float),
-                                     spindle_mass=data.spindle_mass, spindle_com=data.spindle_com)
+            params = (job_parameters(job, self.robot) if job is not None
+                      else _plan_parameters(plan, self.robot))
         self.params = params
         rot = abc_to_matrix(*np.degrees(np.asarray(plan.base_abc, float)))
         n = smp.s.size
