@@ -61,6 +61,9 @@ CONTRADICTION_RATIO = 0.25
 #: A record the other records' fit misses by more than this many standard deviations [-]
 #: (RMS over its three components) contradicts them: 3·5² = 75 is far beyond χ²₃'s 1e-6 tail (≈ 31).
 OUTLIER_SIGMA = 5.0
+#: ... and by more than this much [N] plus this share of its force [-]: far below a dynamometer's
+#: accuracy (≈ 1 %), so only a misfit a sensor could see is called a contradiction.
+MISFIT_FLOOR_N, MISFIT_FLOOR_REL = 0.1, 0.002
 #: Fewest cuts for estimating how the measurement error grows with the force [-] (below: one σ).
 MIN_CUTS_VARIANCE = 6
 #: Reweighting passes of the feasible weighted least squares [-].
@@ -306,7 +309,10 @@ def fit_coefficients(records: Sequence[CutRecord], tool: Tool, material: Materia
                          f"record {used[worst].name}, {per_record[worst]:.3g} N); check its "
                          "frame, units and verdict")
     odd, distance = _most_contradicting(a, f, w)
-    if distance > OUTLIER_SIGMA:
+    # Near-perfect records (a simulation) make σ a few mN: a misfit below any force sensor's
+    # resolution contradicts nothing, however many of those σ it is.
+    floor = MISFIT_FLOOR_N + MISFIT_FLOOR_REL * float(np.linalg.norm(used[odd].force_n))
+    if distance > OUTLIER_SIGMA and per_record[odd] > floor:
         raise FitRefused("coefficients", f"record {used[odd].name} contradicts the others: its "
                          f"mean force misses the fit of the other cuts by {distance:.1f} standard "
                          f"deviations ({per_record[odd]:.3g} N); check its frame, units and "

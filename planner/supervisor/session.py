@@ -91,7 +91,9 @@ class SessionConfig:
         compensation_offline: the program was exported with ``--compensate-deflection``: the
             online part corrects only what the plan's δ did not.
         records: append one cut record per section run to this JSON Lines file (the detector's
-            verdict; docs/calibration.md), None: none.
+            verdict; the chatter frequency of a chatter section; the steady mean force when the
+            signal is the simulated cut — a recorded or streamed signal is one channel, no force
+            vector; docs/calibration.md), None: none.
         records_tool: the tool data name the records give (``cctmill tools``).
     """
 
@@ -242,7 +244,8 @@ def run_session(plan: Plan, source: Any, link: Any, config: SessionConfig, fs_hz
         config: the session's settings (``sigma`` None: learned from the first ``learn`` s).
         fs_hz: the source's sample rate [Hz].
         signal, robot: the names the summary gives them.
-        cut, scenario: the simulated cut and its scenario, for the episodes' true timing.
+        cut, scenario: the simulated cut and its scenario, for the episodes' true timing (and
+            the records: the signal is then the cut's resultant force).
         clock, sleep, before_step: the loop's clock (a :class:`VirtualClock` runs without waiting).
         on_alarm: called with every operator alarm as it is raised, inside the loop (return fast):
             e.g. a stop request the KRL program polls.
@@ -257,11 +260,16 @@ def run_session(plan: Plan, source: Any, link: Any, config: SessionConfig, fs_hz
         if duration is None:
             duration = getattr(source, "duration_s", None) or math.inf
         trace = RunTrace()
+        # the records see the signal the supervisor reads; only the simulated cut's samples are a
+        # force the records can hold (its resultant, along the model's direction)
         recorder = (SectionRecorder(plan, config.records, config.records_tool,
-                                    detector=config.supervisor.detector, log=config.log)
+                                    detector=config.supervisor.detector, log=config.log,
+                                    fs_hz=fs_hz, signal="resultant" if cut is not None else "scalar",
+                                    band_hz=getattr(sup.detector, "band_hz", sup.level.band_hz))
                     if config.records else None)
+        read = recorder.tap(source) if recorder is not None else source
         try:
-            rep: LoopReport | None = run_loop(sup, source, link, duration, config.cycle, clock=clock,
+            rep: LoopReport | None = run_loop(sup, read, link, duration, config.cycle, clock=clock,
                                               sleep=sleep, before_step=before_step, on_step=trace,
                                               on_alarm=on_alarm,
                                               on_cycle=chain_on_cycle(compensation, recorder))
@@ -278,6 +286,8 @@ def run_session(plan: Plan, source: Any, link: Any, config: SessionConfig, fs_hz
         summary.compensation = _compensation_summary(compensation, rep, link, controller)
     if recorder is not None:
         summary.records = {"file": str(recorder.path), "written": recorder.written,
+                           "with_force": recorder.with_force,
+                           "with_chatter_hz": recorder.with_chatter_hz,
                            "errors": recorder.errors, "last_error": recorder.last_error}
     if config.plot:
         ch = sup.level
