@@ -48,6 +48,7 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -64,6 +65,7 @@ from planner.calibrate.fit_coefficients import (  # noqa: E402
     FitRefused,
     fit_coefficients,
 )
+from planner.calibrate.fit_process import fit_process_gain  # noqa: E402
 from planner.calibrate.fit_stiffness import fit_stiffness  # noqa: E402
 from planner.calibrate.testcuts import (  # noqa: E402
     boundary_cuts,
@@ -206,11 +208,21 @@ def _boundary(ctx: CalibrationContext, poses, quick: bool, log, stiffness_scale:
         nominal = ctx.with_(criterion=crit)
         said = np.array([criterion_margin(nominal, r) <= 0.0 for r in val], float)
         rows[f"nominal model, {crit} verdict"] = _brier_accuracy(said, y)
+    gain = None
+    try:   # the eigen criterion with the process gain fitted to the same training passes
+        g = fit_process_gain(ctx, records, cal_params)
+        p_g = replace(cal_params, process_gain=cal_params.process_gain * g.gain)
+        said = np.array([criterion_margin(ctx, r, p_g) <= 0.0 for r in val], float)
+        rows[f"calibrated eigen verdict, process gain x{g.gain:.3g}"] = _brier_accuracy(said, y)
+        gain = {"gain": g.gain, "gain_ci": list(g.gain_ci), "training_accuracy": g.accuracy}
+    except FitRefused as e:
+        gain = {"refused": e.reason}
     log(f"boundary: {int(y.sum())}/{len(y)} validation cuts chatter; " + "; ".join(
         f"{k}: accuracy {v[1]:.0%}" for k, v in rows.items()))
     return {"n_start": n_start, "n_voi": n_voi, "n_validation": n_val,
             "validation_chatter": int(y.sum()), "training_chatter": fit1.n_chatter,
             "rows": {k: {"brier": v[0], "accuracy": v[1]} for k, v in rows.items()},
+            "process_gain": gain,
             "voi_p_chatter": [r.source["p_chatter"] for r in voi]}
 
 #: The boundary as the issue judges it: the critical a_p at the job's spindle speed at three poses
@@ -342,6 +354,15 @@ def markdown(r: dict) -> str:
               "| predictor | accuracy | Brier score |", "|---|---|---|"]
     lines += [f"| {k} | {100 * v['accuracy']:.0f} % | {v['brier']:.3f} |"
               for k, v in bd["rows"].items()]
+    g = bd.get("process_gain") or {}
+    if "gain" in g:
+        lines += ["", f"Process gain fitted to the {bd['n_start'] + bd['n_voi']} training passes "
+                  f"(`--fit process`): x{g['gain']:.3g} (95 % CI {g['gain_ci'][0]:.3g} .. "
+                  f"{g['gain_ci'][1]:.3g}), its eigen verdicts right for "
+                  f"{100 * g['training_accuracy']:.0f} % of them; on the fresh passes the row "
+                  "above."]
+    elif "refused" in g:
+        lines += ["", f"Process gain (`--fit process`): refused: {g['refused']}"]
     cr = r.get("critical")
     if cr:
         true_ap = cr["true_critical_ap_mm"]

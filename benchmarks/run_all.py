@@ -26,6 +26,8 @@
   with online RKorr and with both, and the RKorr step's cost;
 - ``calibration.py``: cutting coefficients, stiffness scale and a stability boundary fitted from
   test cuts run in a simulated true cell whose hidden parameters differ from the nominal ones;
+- ``calibration_loop.py``: the loop on the same truth: plan with the nominal model, test passes,
+  calibrate, replan, every section of each plan simulated in the truth;
 - ``placement.py``: a placement study of the demo serial against a LocalCluster of 2 workers,
   per-placement cost, scheduler overhead per task, the screen's pruning, best vs own ``$BASE``
   (and the sizing estimate of ``docs/placement.md``, its marked block).
@@ -144,6 +146,10 @@ RKorr through RSI, both, and the bound any feed-forward correction with that sti
 The model learning from the cell's own cuts: a simulated true cell (joint stiffness ×0.7,
 coefficients +15 %, process gain ×1.3, regeneration on) runs test passes with realistic force
 noise; the fits recover what they can and say, with intervals, what the data cannot pin down.""",
+    "calibration_loop": """\
+The loop a cell would run: the nominal plan, test passes in the truth, `cctmill calibrate`, the
+replan, and every cut section of each plan simulated in the truth at its planned feed; beside them
+the plan made with the truth's own stiffness and coefficients.""",
     "placement": """\
 The baseline is the same placement study run serially in this process; the LocalCluster's workers
 are warmed up first (one plan each) and its results must equal the serial ones row for row before
@@ -429,6 +435,11 @@ def main(argv: list[str] | None = None) -> tuple[str, bool]:
         log, lambda: _module("calibration").run(log=log),
         lambda r: _module("calibration").markdown(r),
         lambda r: _module("calibration").summary_rows(r))
+    loop = Step("calibration_loop", "The calibration loop on the simulated truth "
+                "(`benchmarks/calibration_loop.py`)").run(
+        log, lambda: _module("calibration_loop").run(log=log),
+        lambda r: _module("calibration_loop").markdown(r),
+        lambda r: _module("calibration_loop").summary_rows(r))
     placement = Step("placement", "Placement studies on Dask (`benchmarks/placement.py`)").run(
         log, lambda: _module("placement").run(log),
         lambda r: _module("placement").markdown(r), placement_rows)
@@ -436,7 +447,7 @@ def main(argv: list[str] | None = None) -> tuple[str, bool]:
     # Summary order: throughput, thesis figures, links, toolpath, engagement, planner, feed intent,
     # KRL, supervisor, detectors, compensation, dynamics, placement.
     steps = [throughput_step, figures, links, toolpath, engagement, planner, intent, krl,
-             supervisor, detector, compensation, dynamics, calibration, placement]
+             supervisor, detector, compensation, dynamics, calibration, loop, placement]
     failed = [st for st in steps if st.error is not None]
     rows = [row for st in steps for row in st.rows]
     rows += [(f"{st.title}", "failed: see its section", "—", "not run") for st in failed]
@@ -444,7 +455,7 @@ def main(argv: list[str] | None = None) -> tuple[str, bool]:
     table = summary_table(rows, machine)
     total = f"_Total wall time {time.perf_counter() - t0:.0f} s._"
     sections = [throughput_step, toolpath, engagement, links, supervisor, detector, compensation,
-                dynamics, calibration, planner, intent, krl, placement]
+                dynamics, calibration, loop, planner, intent, krl, placement]
     doc = "\n\n".join([
         "# cctmill benchmarks",
         "## Summary", table,

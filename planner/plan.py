@@ -36,6 +36,7 @@ import numpy as np
 
 from models.errors import CctmillError, InputError
 from models.tooling import load_material
+from planner._progress import MIN_TOTAL, bar
 from planner.cam_feed import apply_cam_feed, cam_feed_caps, check_rapid_above_feed, non_cut_sections
 from planner.ceilings import CONSTRAINTS, Ceilings, Evaluation, PathModel
 from planner.feed_profile import REST_SPEED, FeedProfile, profile_timing
@@ -44,6 +45,7 @@ from planner.limits import Limits
 from planner.optimize import NOT_SOLVED, SolveResult, optimize_sections
 from planner.partition import cut_time_bound, fastest_splits
 from planner.plan_file import KINDS, Plan, PlanSamples, PlanSection, SectionCharacteristic, SolverRecord
+from planner.plan_floor import floor_problem
 from planner.prepare import Prepared, prepare
 from planner.sections import (
     CUT,
@@ -53,7 +55,6 @@ from planner.sections import (
     merge_empty_sections,
     sample_kinds,
     section_of_samples,
-    split_by_length,
     step_lengths,
 )
 from planner.thesis_sections import thesis_sections
@@ -90,6 +91,8 @@ JOINT_RELAX = 1e3
 PROFILED = ("optimize",)
 #: Threads of the ceilings' evaluation by default (:class:`planner.ceilings.PathModel`).
 DEFAULT_THREADS = 2
+#: The steps the ``planning`` bar counts after the ceilings': sections, timing, evaluation, rows.
+_PLAN_STEPS = 4
 #: What a method that solves no NLP does instead, in words (the report and ``cctmill plan``).
 _NO_OPTIMISATION = {
     "optimize": "no optimisation needed: the path has no cut samples",
@@ -210,41 +213,10 @@ def _ceiling_arrays(n: int, model: PathModel, ceil: Ceilings) -> tuple[np.ndarra
 
 
 def _check_floor(prep: Prepared, model: PathModel, ceil: Ceilings, runs, ds, limits: Limits) -> None:
-    bad = np.flatnonzero(ceil.floor_violation != "")
-    if bad.size == 0:
-        return
-    k = int(bad[0])
-    sample = int(model.index[k])
-    cells = [c for a, b, kind in runs if kind == CUT for c in split_by_length(ds, a, b,
-                                                                          limits.section_length_min)]
-    cell = next(i for i, (a, b) in enumerate(cells) if a <= sample < b)
-    what = str(ceil.floor_violation[k])
-    ev = model.evaluate(np.array([limits.feed_min]), np.array([k]))
-    detail = {
-        "force": f"{ev.force[0]:.1f} N > force_max_n {limits.force_max:.1f} N (the edge forces "
-                 "alone exceed it: raise the limit or cut shallower)",
-        "deflection": f"{ev.deflection_norm[0] * 1e3:.3f} mm > deflection_tol_mm "
-                      f"{limits.deflection_tol * 1e3:.3f} mm (raise the tolerance, cut shallower "
-                      "or move the part where the arm is stiffer)",
-        "power": f"{ev.power[0] * 1e-3:.2f} kW > power_max_kw {limits.power_max * 1e-3:.2f} kW",
-        "chatter": (f"Floquet spectral radius {model.floquet_radius()[k]:.4f} >= 1 "
-                    if model.criterion == "floquet" else
-                    f"gamma {np.degrees(ev.gamma[0]):.2f} deg outside the calibrated window "
-                    if model.criterion == "gamma_window" else
-                    f"margin {ev.margin[0]:.3g} N/m below the required "
-                    f"{limits.margin_min:.3g} N/m ")
-                   + "at every feed (change the pose, the tool rotation, the spindle speed or "
-                     "the depths of cut)",
-    }[what]
-    e = prep.engagement
-    p = prep.path
-    n_bad = bad.size
-    raise PlanInfeasibleError(
-        f"section {cell + 1} (s {p.s[cells[cell][0]]:.3f}-{p.s[cells[cell][1] - 1]:.3f} m, "
-        f"{p.where(sample)}): {what} limit cannot be met even at feed_min_mm_s "
-        f"{limits.feed_min * 1e3:g}: {detail}; a_e {e.a_e[sample] * 1e3:.2f} mm, a_p "
-        f"{e.a_p[sample] * 1e3:.2f} mm ({n_bad} sample{'s' if n_bad > 1 else ''} affected)",
-        section=cell, constraint=what, sample=sample)
+    problem = floor_problem(prep, model, ceil, runs, ds, limits)
+    if problem is not None:
+        message, cell, what, sample = problem
+        raise PlanInfeasibleError(message, section=cell, constraint=what, sample=sample)
 
 
 def _ceilings(prep: Prepared, limits: Limits | None, progress: bool,
@@ -307,6 +279,9 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
     kinds = sample_kinds(n, model.index, path.cutting)
     runs = kind_runs(kinds)
     _check_floor(prep, model, ceil, runs, ds, limits)
+    # after the ceilings' bar: the sections, the timing, the evaluation (seconds on a long path)
+    steps = bar(_PLAN_STEPS, "planning", progress and n >= MIN_TOTAL, unit="step",
+                min_total=1)
     ceiling, binding = _ceiling_arrays(n, model, ceil)
     pos = np.full(n, -1)
     pos[model.index] = np.arange(len(model))
@@ -314,6 +289,7 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
     def gamma_at(samples: np.ndarray, feeds: np.ndarray) -> np.ndarray:
         return model.evaluate(feeds, pos[samples]).gamma
 
+    steps.set_postfix_str("sections")
     t = time.perf_counter()
     splits = fastest_splits(runs, ds, ceiling, limits.section_length_min)
     solver = SolveResult(NOT_SOLVED, True, 0, 0.0, 0.0, 0.0, _NO_OPTIMISATION[method])
@@ -337,6 +313,8 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
                 limits.section_length_min, limits.feed_change_max,
                 job.plan.section_change_cost_s, warm=warm, f_ref=f_ref, cells=splits)
     walls["sections_s"] = time.perf_counter() - t
+    steps.update()
+    steps.set_postfix_str("timing")
     sections = merge_empty_sections(
         sorted(cut + non_cut_sections(runs, path, prep.engagement.plunge, limits),
                key=lambda x: x.start), ds)
@@ -352,9 +330,13 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
         timing = time_path(path.s, prep.kinematics.q, feed, data.velocity, data.acceleration,
                            limits.path_acc_max, limits.path_jerk_max)
     walls["timing_s"] = timing.compute_time
+    steps.update()
+    steps.set_postfix_str("evaluation")
     t = time.perf_counter()
     evaluation = model.evaluate(feed[model.index])
     walls["evaluation_s"] = time.perf_counter() - t
+    steps.update()
+    steps.set_postfix_str("section rows")
     cut_secs = [sec for sec in sections if sec.kind == CUT]
     warnings = [*prep.warnings, *getattr(prep.engagement, "warnings", ()),
                 *tool_warnings(prep.tool, load_material(job.material)),
@@ -371,6 +353,7 @@ def plan_prepared(prep: Prepared, method: str = "optimize", safety_factor: float
     result.plan_sections = _plan_sections(result, ceiling, pos)
     result.cut_time_bound = cut_time_bound(splits, ds, ceiling)
     walls["report_rows_s"] = time.perf_counter() - t
+    steps.close()
     return result
 
 
@@ -548,7 +531,11 @@ def plan_of_result(res: PlanResult) -> Plan:
         spindle_rpm=job.spindle.rpm, flutes=tool.flutes, tool_diameter=tool.radius * 2.0,
         material=job.material,
         model={"process_model": job.model.process_model, "mass_model": job.model.mass_model,
-               "criterion": job.model.chatter_criterion, "cct": job.model.cct},
+               "criterion": job.model.chatter_criterion, "cct": job.model.cct,
+               # what the supervisor's compensation models the cell with (a calibration's)
+               "joint_stiffness_scale": job.cell.joint_stiffness_scale,
+               "process_gain": job.model.process_gain,
+               "coefficients": [float(v) for v in job.material_coefficients()]},
         limits=res.limits, safety_factor=res.safety_factor, sections=res.plan_sections,
         samples=_plan_samples(res), cycle_time=res.cycle_time, process_time=res.process_time,
         solver=SolverRecord.from_json(res.solver.as_json()),

@@ -578,12 +578,13 @@ def test_importing_the_records_format_loads_no_physics():
     assert out == "[]"
 
 
-def test_an_unimplemented_fit_is_reported_as_refused(job_dir, ctx, planned, capsys):
+def test_a_process_fit_without_chatter_records_is_reported_as_refused(job_dir, ctx, planned,
+                                                                       capsys):
     from planner.cli import main
 
-    write_records(job_dir / "cuts.jsonl", synthetic(ctx, planned))
+    write_records(job_dir / "cuts.jsonl", synthetic(ctx, planned))   # stable slots only
     rc = main(["calibrate", str(job_dir / "cuts.jsonl"), "--job", str(job_dir / "job.toml"),
                "-o", str(job_dir / "o.toml"), "--fit", "coefficients,process", "--json"])
     report = json.loads(capsys.readouterr().out)
-    assert rc == 0 and "not implemented" in report["refused"]["process"]
+    assert rc == 0 and "at least 2 of each" in report["refused"]["process"]
     assert report["stiffness"] is None and report["coefficients"]["n_cuts"] == 12

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from models.errors import CctmillError
+from planner._progress import bar
 from planner.calibrate.context import CalibrationContext
 from planner.calibrate.fit_coefficients import FitRefused
 from planner.calibrate.fit_stiffness import record_cut
@@ -31,11 +32,13 @@ __all__ = [
     "FEATURES",
     "MIN_LABELLED",
     "MIN_PER_CLASS",
+    "PROGRESS_MIN_RECORDS",
     "Boundary",
     "boundary_from_job",
     "criterion_margin",
     "fit_boundary",
     "job_margin_floor",
+    "labelled_verdicts",
     "margin_floors",
     "required_margin",
 ]
@@ -49,6 +52,9 @@ MIN_PER_CLASS = 2
 #: Inverse L2 regularisation strength on the standardised features [-] (scikit-learn's C): the
 #: prior keeps a separable handful of cuts from a boundary of infinite slope.
 REGULARISATION_C = 1.0
+#: Fewest labelled records for a progress bar [-]: a margin takes 1-3 ms, a leave-one-out refit
+#: some 3 ms at a thousand records, so fewer than this finish in well under a second.
+PROGRESS_MIN_RECORDS = 200
 
 
 def criterion_margin(ctx: CalibrationContext, record: CutRecord, params=None) -> float:
@@ -128,32 +134,52 @@ def _fit(z: np.ndarray, y: np.ndarray):
     return LogisticRegression(C=REGULARISATION_C).fit(z, y)
 
 
-def fit_boundary(ctx: CalibrationContext, records: Sequence[CutRecord], params=None) -> Boundary:
+def labelled_verdicts(records: Sequence[CutRecord], fit: str, why: str
+                      ) -> tuple[list[CutRecord], np.ndarray]:
+    """The records with a verdict of stable or chatter and their labels (1: chatter).
+
+    Raises:
+        FitRefused: (for ``fit``, with ``why``) fewer than :data:`MIN_LABELLED` of them, or fewer
+            than :data:`MIN_PER_CLASS` of either verdict.
+    """
+    labelled = [r for r in records if r.verdict in ("stable", "chatter")]
+    y = np.array([r.verdict == "chatter" for r in labelled], int)
+    n_chatter = int(y.sum())
+    if len(labelled) < MIN_LABELLED or min(n_chatter, len(y) - n_chatter) < MIN_PER_CLASS:
+        raise FitRefused(fit, f"{len(labelled)} records with a verdict ({n_chatter} chatter); "
+                         f"need {MIN_LABELLED}, at least {MIN_PER_CLASS} of each: {why} "
+                         "(cctmill testcuts proposes them)")
+    return labelled, y
+
+
+def fit_boundary(ctx: CalibrationContext, records: Sequence[CutRecord], params=None,
+                 progress: bool = False) -> Boundary:
     """Fit P(chatter | margin, a_p, rpm) to the records' verdicts.
 
     Args:
         ctx: the cell (its criterion gives the margin).
         records: records with a verdict of stable or chatter are used.
         params: model parameters for the margins (default: the job's).
+        progress: progress bars on stderr (the margins, the leave-one-out refits), on a
+            terminal only and from :data:`PROGRESS_MIN_RECORDS` records.
 
     Raises:
         FitRefused: fewer than :data:`MIN_LABELLED` labelled records, or fewer than
             :data:`MIN_PER_CLASS` of either verdict.
     """
-    labelled = [r for r in records if r.verdict in ("stable", "chatter")]
-    y = np.array([r.verdict == "chatter" for r in labelled], int)
+    labelled, y = labelled_verdicts(records, "boundary", "a boundary needs cuts on both sides "
+                                    "of it")
     n_chatter = int(y.sum())
-    if len(labelled) < MIN_LABELLED or min(n_chatter, len(y) - n_chatter) < MIN_PER_CLASS:
-        raise FitRefused("boundary", f"{len(labelled)} records with a verdict ({n_chatter} "
-                         f"chatter); need {MIN_LABELLED}, at least {MIN_PER_CLASS} of each: a "
-                         "boundary needs cuts on both sides of it (cctmill testcuts proposes "
-                         "them)")
     rows = []
-    for r in labelled:
-        try:
-            rows.append([criterion_margin(ctx, r, params), r.ap_mm, r.rpm])
-        except CctmillError as e:   # outside the joint limits, singular, a cut the model refuses
-            raise FitRefused("boundary", f"record {r.name}: {e}; fix or leave out the record") from e
+    with bar(len(labelled), f"boundary: {ctx.criterion} margins", progress, unit="record",
+             min_total=PROGRESS_MIN_RECORDS) as pbar:
+        for r in labelled:
+            try:
+                rows.append([criterion_margin(ctx, r, params), r.ap_mm, r.rpm])
+            except CctmillError as e:   # outside the joint limits, singular, a refused cut
+                raise FitRefused("boundary", f"record {r.name}: {e}; fix or leave out the "
+                                 "record") from e
+            pbar.update()
     x = np.array(rows)
     mean = x.mean(axis=0)
     scale = x.std(axis=0)
@@ -166,12 +192,19 @@ def fit_boundary(ctx: CalibrationContext, records: Sequence[CutRecord], params=N
     hessian = d.T @ (d * (p * (1.0 - p))[:, None])
     hessian[1:, 1:] += np.eye(3) / REGULARISATION_C  # the intercept is not penalised
     covariance = np.linalg.inv(hessian + 1e-12 * np.eye(4))
+    from threadpoolctl import threadpool_limits  # scikit-learn's own dependency
+
     hits = 0
-    for i in range(len(y)):
-        keep = np.arange(len(y)) != i
-        if len(set(y[keep])) < 2:
-            continue
-        hits += int(_fit(z[keep], y[keep]).predict(z[i:i + 1])[0] == y[i])
+    # one BLAS thread: the refits are a few thousand tiny products each, which threads only slow
+    # (ten times and more on a busy machine, where the threads wait for each other)
+    with bar(len(y), "boundary: leave-one-out", progress, unit="fit",
+             min_total=PROGRESS_MIN_RECORDS) as pbar, threadpool_limits(limits=1, user_api="blas"):
+        for i in range(len(y)):
+            pbar.update()
+            keep = np.arange(len(y)) != i
+            if len(set(y[keep])) < 2:
+                continue
+            hits += int(_fit(z[keep], y[keep]).predict(z[i:i + 1])[0] == y[i])
     eps = 1e-12
     log_loss = float(-np.mean(y * np.log(p + eps) + (1 - y) * np.log(1 - p + eps)))
     return Boundary(criterion=ctx.criterion, mean=mean, scale=scale, coef=coef,

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -25,15 +25,18 @@ from planner.calibrate.fit_coefficients import (
     FitRefused,
     fit_coefficients,
 )
+from planner.calibrate.fit_process import ProcessGainFit, fit_process_gain
 from planner.calibrate.fit_stiffness import StiffnessFit, fit_stiffness
 from planner.calibrate.overlay import write_overlay
 from planner.calibrate.records import CutRecord, load_records
 
-__all__ = ["FITS", "CalibrationResult", "TestCutsResult", "calibrate", "testcuts", "write_calibration"]
+__all__ = ["DESIGNS", "FITS", "CalibrationResult", "TestCutsResult", "calibrate", "testcuts",
+           "write_calibration"]
 
 #: The fits ``--fit`` may name, in the order they run.
 FITS = ("coefficients", "stiffness", "process", "boundary")
-_NOT_YET = {"process": "the process-gain fit is not implemented yet"}
+#: The test-pass designs of :func:`testcuts`.
+DESIGNS = ("boundary", "identification", "along-job")
 
 
 @dataclass(frozen=True)
@@ -44,7 +47,7 @@ class CalibrationResult:
         context: the nominal cell (from the job).
         records: the records read; record_files: where from.
         job_file: the job.
-        coefficients, stiffness, boundary: the fits (None: not asked for, or refused).
+        coefficients, stiffness, process, boundary: the fits (None: not asked for, or refused).
         refused: fit name → the reason it was not made.
     """
 
@@ -56,6 +59,7 @@ class CalibrationResult:
     stiffness: StiffnessFit | None = None
     boundary: Boundary | None = None
     refused: dict[str, str] = field(default_factory=dict)
+    process: ProcessGainFit | None = None
 
     def report(self) -> dict:
         """The fit-quality report (JSON-able, SI)."""
@@ -66,6 +70,7 @@ class CalibrationResult:
             "n_records": len(self.records), "verdicts": verdicts,
             "coefficients": None if self.coefficients is None else self.coefficients.as_json(),
             "stiffness": None if self.stiffness is None else self.stiffness.as_json(),
+            "process": None if self.process is None else self.process.as_json(),
             "boundary": None if self.boundary is None else self.boundary.as_json(),
             "refused": dict(self.refused),
         }
@@ -88,6 +93,12 @@ class CalibrationResult:
                 joints = ", ".join(f"A{i + 1} {v:.3g}" for i, v in enumerate(s.per_joint)
                                    if s.resolved[i])
                 out.append(f"  per joint (resolved): {joints}")
+        g = self.process
+        if g is not None:
+            out.append(f"process gain (eigen criterion, {g.n} cuts, {g.n_chatter} chatter): "
+                       f"{g.gain:.4g} x the job's  95 % CI [{g.gain_ci[0]:.4g}, "
+                       f"{g.gain_ci[1]:.4g}]; the criterion's verdicts right for "
+                       f"{g.accuracy:.0%} of the cuts (the job's gain: {g.nominal_accuracy:.0%})")
         b = self.boundary
         if b is not None:
             out.append(f"stability boundary on the {b.criterion} margin, a_p, rpm: {b.n} cuts "
@@ -99,10 +110,13 @@ class CalibrationResult:
 
 
 def calibrate(record_files: Sequence[str | Path], job_file: str | Path,
-              fits: Sequence[str] = ("coefficients", "stiffness")) -> CalibrationResult:
+              fits: Sequence[str] = ("coefficients", "stiffness"),
+              progress: bool = False) -> CalibrationResult:
     """Read the records and the job, make the fits named in ``fits`` (see :data:`FITS`).
 
-    A fit the data cannot support is not made; its reason is in ``refused``.
+    A fit the data cannot support is not made; its reason is in ``refused``. ``progress``:
+    progress bars on stderr for the long steps (the boundary's margins and refits), on a
+    terminal only.
 
     Raises:
         RecordError, JobError: unreadable or invalid records or job.
@@ -130,21 +144,25 @@ def calibrate(record_files: Sequence[str | Path], job_file: str | Path,
             stiffness = fit_stiffness(ctx, records)
         except FitRefused as e:
             refused["stiffness"] = e.reason
-    boundary = None
-    if "boundary" in fits:
-        params = ctx.params(
-            joint_scale=1.0 if stiffness is None else (
-                stiffness.per_joint if stiffness.per_joint is not None else stiffness.scale),
-            coefficients=None if coefficients is None else coefficients.values)
+    boundary = process = None
+    params = ctx.params(
+        joint_scale=1.0 if stiffness is None else (
+            stiffness.per_joint if stiffness.per_joint is not None else stiffness.scale),
+        coefficients=None if coefficients is None else coefficients.values)
+    if "process" in fits:
         try:
-            boundary = fit_boundary(ctx, records, params)
+            process = fit_process_gain(ctx, records, params, progress=progress)
+            params = replace(params, process_gain=ctx.process_gain * process.gain)
+        except FitRefused as e:
+            refused["process"] = e.reason
+    if "boundary" in fits:
+        try:
+            boundary = fit_boundary(ctx, records, params, progress=progress)
         except FitRefused as e:
             refused["boundary"] = e.reason
-    if "process" in fits:
-        refused["process"] = _NOT_YET["process"]
     result = CalibrationResult(ctx, records, tuple(str(p) for p in record_files), str(job_file),
-                               coefficients, stiffness, boundary, refused)
-    if coefficients is None and stiffness is None and boundary is None:
+                               coefficients, stiffness, boundary, refused, process)
+    if coefficients is None and stiffness is None and boundary is None and process is None:
         raise FitRefused("every", "; ".join(f"{k}: {v}" for k, v in refused.items()))
     return result
 
@@ -174,6 +192,12 @@ def write_calibration(result: CalibrationResult, overlay: str | Path) -> tuple[P
         comments.append(f"k_tc .. k_ae: {c.n_cuts} cuts, {c.n_feeds} feeds per tooth "
                         f"{c.feed_per_tooth_range[0] * 1e3:.3g} .. "
                         f"{c.feed_per_tooth_range[1] * 1e3:.3g} mm; 95 % CIs in the report")
+    if result.process is not None:
+        g = result.process
+        model["process_gain"] = float(f"{ctx.process_gain * g.gain:.6g}")
+        comments.append(f"process_gain: the job's {ctx.process_gain:g} x fitted {g.gain:.4g} "
+                        f"(95 % CI {g.gain_ci[0]:.4g} .. {g.gain_ci[1]:.4g}; eigen verdicts right "
+                        f"for {g.accuracy:.0%} of {g.n} cuts, {g.nominal_accuracy:.0%} before)")
     if result.boundary is not None:
         cal.update(result.boundary.as_overlay())
         comments.append(f"boundary_*: logistic P(chatter) over the {result.boundary.criterion} "
@@ -224,7 +248,9 @@ def testcuts(job_file: str | Path, n: int, out_dir: str | Path,
 
     ``design``: ``identification`` (slots over the tool's chip-load range, for the coefficients
     and stiffness) or ``boundary``: with ``records`` whose verdicts support a boundary, the most
-    informative passes for it (value of information); without, a space-filling start.
+    informative passes for it (value of information); without, a space-filling start; or
+    ``along-job``: the same, but each pass imitates one of the job's own planned sections (its
+    pose, feed direction, a_e and feed, at the job's spindle speed), only a_p varying.
     """
     from planner.calibrate.testcuts import (
         boundary_cuts,
@@ -237,8 +263,8 @@ def testcuts(job_file: str | Path, n: int, out_dir: str | Path,
     from planner.job import load_job
     from robot_io.krl.writer import write_krl
 
-    if design not in ("boundary", "identification"):
-        raise InputError("--design", f"{design!r} is not boundary or identification")
+    if design not in DESIGNS:
+        raise InputError("--design", f"{design!r} is not one of {', '.join(DESIGNS)}")
     if not 1 <= n <= 200:
         raise InputError("-n", f"propose 1 to 200 passes, got {n}")
     job = load_job(job_file)
@@ -255,11 +281,13 @@ def testcuts(job_file: str | Path, n: int, out_dir: str | Path,
                                       ap_mm=(ap_mm[0], (ap_mm[0] + ap_mm[1]) / 2), milling="slot",
                                       feeds="ends")
         how = "identification slots"
+    elif design == "along-job":
+        planned, how = _along_job(job, ctx, n, records, ap_mm, seed, progress)
     else:
         boundary = None
         if records:
             try:
-                boundary = fit_boundary(ctx, load_records(*records))
+                boundary = fit_boundary(ctx, load_records(*records), progress=progress)
             except FitRefused as e:
                 how = f"space-filling (no boundary yet: {e.reason})"
         if boundary is not None:
@@ -280,3 +308,27 @@ def testcuts(job_file: str | Path, n: int, out_dir: str | Path,
         simulated = tuple(run_cuts(truth, list(planned), seed=seed, progress=progress))
         files.append(write_records(out / "records.jsonl", simulated))
     return TestCutsResult(tuple(planned), how, tuple(files), simulated)
+
+
+def _along_job(job, ctx: CalibrationContext, n: int, records, ap_mm, seed: int, progress: bool
+               ) -> tuple[list[CutRecord], str]:
+    """Passes imitating the job's planned sections: value of information on the boundary the
+    records give, else a space-filling start (see :func:`testcuts`)."""
+    from planner.calibrate.testcuts import along_job_cuts, propose_along_job, section_templates
+    from planner.plan import plan_job, plan_of_result
+
+    templates = section_templates(plan_of_result(plan_job(job, progress=progress)), job.tool.name)
+    if not templates:
+        raise InputError("--design along-job", "the job's plan has no cut section to imitate")
+    deepest = max(r.ap_mm for r in templates)
+    span = ap_mm or (max(0.5, 0.2 * deepest), 1.2 * deepest)
+    if records:
+        try:
+            boundary = fit_boundary(ctx, load_records(*records), progress=progress)
+        except FitRefused as e:
+            return (along_job_cuts(templates, n, span, seed=seed),
+                    f"space-filling along the job (no boundary yet: {e.reason})")
+        every = max(1, len(templates) // 40)   # some 40 sections x the depth grid
+        return (propose_along_job(ctx, boundary, templates, n, span, every=every),
+                "value of information along the job's sections")
+    return along_job_cuts(templates, n, span, seed=seed), "space-filling along the job's sections"

@@ -22,13 +22,17 @@ from planner.calibrate.records import CutRecord
 
 __all__ = [
     "IK_TOLERANCE",
+    "along_job_cuts",
     "boundary_cuts",
     "identification_cuts",
+    "imitate_section",
     "job_test_poses",
     "krl_program",
     "pose_at",
     "pose_cut_frame",
+    "propose_along_job",
     "propose_cuts",
+    "section_templates",
 ]
 
 #: Largest TCP position error [m] of a test pose: a test pass is short, a tenth of a millimetre
@@ -232,6 +236,13 @@ def propose_cuts(ctx: CalibrationContext, boundary, poses_deg: Sequence[Sequence
                                pass_mm, "candidate", "value of information")
                 candidates.append(rec)
                 features.append([criterion_margin(ctx, rec, params), rec.ap_mm, rec.rpm])
+    return _voi_pick(boundary, candidates, features, n)
+
+
+def _voi_pick(boundary, candidates: list[CutRecord], features: list[list[float]], n: int,
+              ) -> list[CutRecord]:
+    """The ``n`` candidates of most value of information, picked one by one with the posterior
+    updated as if each pick had been run (see :func:`propose_cuts`)."""
     x = boundary._design(np.asarray(features, float))
     beta = np.concatenate([[boundary.intercept], boundary.coef])
     p = 1.0 / (1.0 + np.exp(-(x @ beta)))
@@ -246,6 +257,8 @@ def propose_cuts(ctx: CalibrationContext, boundary, poses_deg: Sequence[Sequence
         value = 0.5 * np.log1p(p * (1.0 - p) * var)
         value[[i for i, key in enumerate(keys) if key in taken]] = -np.inf
         best = int(np.argmax(value))
+        if not np.isfinite(value[best]):
+            break
         taken.add(keys[best])
         chosen.append(best)
         info = info + p[best] * (1.0 - p[best]) * np.outer(x[best], x[best])
@@ -255,6 +268,79 @@ def propose_cuts(ctx: CalibrationContext, boundary, poses_deg: Sequence[Sequence
         src = {**r.source, "p_chatter": round(float(p[i]), 4)}
         out.append(replace(r, id=f"V{k + 1:02d}", source=src))
     return out
+
+
+def section_templates(plan, tool: str) -> list[CutRecord]:
+    """One planned record per cut section of a plan (its middle sample's pose, cut frame, a_e,
+    a_p, milling and feed; :func:`planner.calibrate.supervisor_records.section_record`): the
+    cuts a test pass should imitate when the question is how *this* job's sections behave."""
+    from planner.calibrate.supervisor_records import section_record
+
+    out = []
+    for i in range(len(plan.sections)):
+        r = section_record(plan, i, "unknown", tool)
+        if r is not None:
+            out.append(replace(r, source={"kind": "planned", "design": "job section",
+                                          "section": r.source.get("section")}))
+    return out
+
+
+def along_job_cuts(templates: Sequence[CutRecord], n: int, ap_mm: tuple[float, float],
+                   pass_mm: float = 60.0, seed: int = 0,
+                   rpm: tuple[float, float] | None = None) -> list[CutRecord]:
+    """``n`` passes that imitate the job's own sections (``templates``, spread evenly along the
+    path) at axial depths spread over ``ap_mm`` and, with ``rpm``, spindle speeds over that
+    range at the section's feed per tooth (a stratified sample, seeded): the space-filling start
+    of a boundary for this job's poses, feed directions and engagement."""
+    if n < 1 or not templates:
+        raise InputError("n", "need at least one pass and one job section")
+    rng = np.random.default_rng(seed)
+    u = (np.column_stack([rng.permutation(n), rng.permutation(n)]) + rng.random((n, 2))) / n
+    idx = np.linspace(0, len(templates) - 1, n).round().astype(int)
+    return [imitate_section(templates[i], ap_mm[0] + float(v[0]) * (ap_mm[1] - ap_mm[0]),
+                            pass_mm, f"J{k + 1:02d}", "space-filling along the job",
+                            None if rpm is None else rpm[0] + float(v[1]) * (rpm[1] - rpm[0]))
+            for k, (i, v) in enumerate(zip(idx, u, strict=True))]
+
+
+def imitate_section(template: CutRecord, ap_mm: float, pass_mm: float, name: str, design: str,
+                    rpm: float | None = None) -> CutRecord:
+    """A pass like ``template`` at depth ``ap_mm`` (and spindle speed ``rpm``, the feed scaled to
+    keep the feed per tooth)."""
+    src = {"kind": "planned", "design": design}
+    if template.source.get("section") is not None:
+        src["section"] = template.source["section"]
+    speed = template.rpm if rpm is None else round(float(rpm), 1)
+    feed = round(template.feed_mm_s * speed / template.rpm, 4)
+    return replace(template, ap_mm=round(float(ap_mm), 4), rpm=speed, feed_mm_s=feed,
+                   verdict="unknown", force_n=None, chatter_hz=None, id=name,
+                   duration_s=pass_mm / feed, source=src)
+
+
+def propose_along_job(ctx: CalibrationContext, boundary, templates: Sequence[CutRecord], n: int,
+                      ap_mm: tuple[float, float], params=None, grid_mm: float = 0.25,
+                      every: int = 1, pass_mm: float = 60.0,
+                      rpm: tuple[float, float] | None = None, rpm_grid: int = 5
+                      ) -> list[CutRecord]:
+    """The ``n`` most informative next passes among the job's own sections (every ``every``-th
+    template) at axial depths on a ``grid_mm`` grid over ``ap_mm``, at the job's spindle speed
+    and feed (with ``rpm``: at ``rpm_grid`` speeds over that range, the feed per tooth kept):
+    value of information as :func:`propose_cuts`, where the planner's question is."""
+    from planner.calibrate.fit_boundary import criterion_margin
+
+    if n < 1 or not templates:
+        raise InputError("n", "need at least one pass and one job section")
+    depths = np.arange(ap_mm[0], ap_mm[1] + grid_mm / 2, grid_mm)
+    candidates, features = [], []
+    speeds = [None] if rpm is None else list(np.linspace(rpm[0], rpm[1], rpm_grid))
+    for t in list(templates)[::max(1, every)]:
+        for d in depths:
+            for v in speeds:
+                rec = imitate_section(t, d, pass_mm, "candidate",
+                                      "value of information along the job", v)
+                candidates.append(rec)
+                features.append([criterion_margin(ctx, rec, params), rec.ap_mm, rec.rpm])
+    return _voi_pick(boundary, candidates, features, n)
 
 
 def krl_program(ctx: CalibrationContext, planned: Sequence[CutRecord], name: str = "TESTCUTS",

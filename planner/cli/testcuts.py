@@ -41,8 +41,11 @@ def register(sub) -> None:
                help="folder for the KRL program and the records")
     p.add_argument("--records", nargs="*", default=(), metavar="RECORDS",
                    help="cut records so far (their verdicts give the current boundary)")
-    p.add_argument("--design", choices=("boundary", "identification"), default="boundary",
-                   help="boundary (default) or identification (slots over the chip-load range)")
+    p.add_argument("--design", choices=("boundary", "identification", "along-job"),
+                   default="boundary",
+                   help="boundary (default: over the stock top), identification (slots over the "
+                        "chip-load range) or along-job (passes imitating the job's own planned "
+                        "sections: pose, feed direction, a_e; a_p varied)")
     p.add_argument("--rpm-range", default=None, metavar="LO:HI",
                    help="spindle speeds to try [rpm] (default 0.5..1.5 x the job's)")
     p.add_argument("--ap-range-mm", default=None, metavar="LO:HI",
