@@ -30,6 +30,30 @@ def _margin_short(prep: Prepared, model: PathModel, k: int, margin: float, limit
             "needs by the calibrated boundary ")
 
 
+def _way_out(prep: Prepared, margin: float, k: int, model: PathModel) -> str:
+    """What the calibrated boundary would accept at this sample: a shallower cut or a faster
+    spindle ("" without a probability requirement and a boundary)."""
+    from planner.calibrate.fit_boundary import allowed_depth_and_speed, boundary_from_job
+
+    p_max = prep.job.model.chatter_probability_max
+    boundary = boundary_from_job(prep.job) if p_max is not None else None
+    if boundary is None or model.criterion != boundary.criterion:
+        return ""
+    sample = int(model.index[k])
+    ap_mm = float(prep.engagement.a_p[sample]) * 1e3
+    rpm = float(prep.job.spindle.rpm)
+    depth, speed = allowed_depth_and_speed(boundary, p_max, margin, ap_mm, rpm)
+    top = prep.tool.spindle_speed_max
+    top_rpm = None if top is None else top * 60.0 / (2.0 * math.pi)
+    hints = []
+    if depth is not None and 0.0 < depth < ap_mm:
+        hints.append(f"a_p <= {depth:.2f} mm at {rpm:g} rpm")
+    if speed is not None and speed > rpm:
+        hints.append(f"{speed:.0f} rpm at this a_p" + (
+            f" (above the tool's {top_rpm:g} rpm)" if top_rpm and speed > top_rpm else ""))
+    return f"; the calibrated boundary accepts {' or '.join(hints)} here" if hints else ""
+
+
 def floor_problem(prep: Prepared, model: PathModel, ceil: Ceilings, runs, ds, limits: Limits
                   ) -> tuple[str, int, str, int] | None:
     """The first sample whose limit no feed down to ``feed_min`` meets, as (message, section
@@ -57,7 +81,9 @@ def floor_problem(prep: Prepared, model: PathModel, ceil: Ceilings, runs, ds, li
                     if model.criterion == "gamma_window" else
                     _margin_short(prep, model, k, float(ev.margin[0]), limits))
                    + "at every feed (change the pose, the tool rotation, the spindle speed or "
-                     "the depths of cut)",
+                     "the depths of cut)"
+                   + (_way_out(prep, float(ev.margin[0]), k, model)
+                      if model.criterion == "eigen" else ""),
     }[what]
     e = prep.engagement
     p = prep.path

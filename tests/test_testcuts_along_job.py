@@ -6,6 +6,7 @@ asks for more margin than any feed gives."""
 from __future__ import annotations
 
 import dataclasses
+import re
 import shutil
 from pathlib import Path
 
@@ -83,9 +84,16 @@ def test_a_boundary_no_feed_satisfies_refuses_the_plan_naming_it(tmp_path):
     (tmp_path / "demo_job.toml").write_text(text + '\n[calibration]\noverlay = "o.toml"\n')
     with pytest.raises(PlanInfeasibleError, match=r"chatter limit cannot be met .* N/m that "
                                                   r"P\(chatter\) <= 0\.1 needs by the calibrated "
-                                                  r"boundary at every feed") as info:
+                                                  r"boundary at every feed .*the depths of cut\); "
+                                                  r"the calibrated boundary accepts a_p <= "
+                                                  r"(\d\.\d\d) mm at 4000 rpm here") as info:
         plan_job(load_job(tmp_path / "demo_job.toml"))
     assert info.value.constraint == "chatter"
+    # the hint solves logit = ln(0.1/0.9) for a_p: 4 (a_p − 5) − 0.01 (m − 4e5)/1e5 at its margin
+    margin = float(re.search(r"margin (\S+) N/m below", str(info.value)).group(1))
+    depth = 5.0 + (np.log(1 / 9) + 0.01 * (margin - 4e5) / 1e5) / 4.0
+    assert float(re.search(r"a_p <= (\S+) mm", str(info.value)).group(1)) == pytest.approx(
+        depth, abs=0.01)
 
 
 def test_testcuts_command_along_the_job_writes_krl_and_planned_records(tmp_path, capsys):

@@ -34,6 +34,7 @@ __all__ = [
     "MIN_PER_CLASS",
     "PROGRESS_MIN_RECORDS",
     "Boundary",
+    "allowed_depth_and_speed",
     "boundary_from_job",
     "criterion_margin",
     "fit_boundary",
@@ -230,6 +231,23 @@ def required_margin(boundary: Boundary, p_max: float, ap_mm: float, rpm: float) 
     if b > 0.0:
         return math.inf          # the cuts chatter more where the criterion sees more margin
     return float(boundary.mean[0] + (target - rest) / b)
+
+
+def allowed_depth_and_speed(boundary: Boundary, p_max: float, margin: float, ap_mm: float,
+                            rpm: float) -> tuple[float | None, float | None]:
+    """For a cut of criterion margin ``margin`` at ``ap_mm`` [mm] and ``rpm``: the largest a_p
+    [mm] at this speed, and the lowest speed [rev/min] at this a_p, at which the boundary's point
+    estimate P(chatter) ≤ ``p_max`` (the logit is linear in both). None where the boundary does
+    not fall that way (P(chatter) does not rise with a_p, or does not fall with the speed)."""
+    target = math.log(p_max / (1.0 - p_max))
+    x = np.array([margin, ap_mm, rpm], float)
+    z = (x - boundary.mean) / boundary.scale
+    mu = boundary.intercept + float(boundary.coef @ z)
+    b_ap = boundary.coef[1] / boundary.scale[1]
+    b_rpm = boundary.coef[2] / boundary.scale[2]
+    depth = float(ap_mm + (target - mu) / b_ap) if b_ap > 0 else None
+    speed = float(rpm + (target - mu) / b_rpm) if b_rpm < 0 else None
+    return depth, speed
 
 
 def boundary_from_job(job) -> Boundary | None:

@@ -22,8 +22,10 @@ def register(sub) -> None:
         description="Read cut records (JSON Lines, docs/calibration.md) and a job; fit the "
                     "cutting coefficients (least squares of the mean forces, with 95 % "
                     "confidence intervals), the joint stiffness scale (measured deflections, "
-                    "else chatter frequencies) and, with --fit boundary, P(chatter) over the "
-                    "criterion's margin, a_p and rpm (logistic regression); write the fitted "
+                    "else chatter frequencies), with --fit process the gain on K_p that makes "
+                    "the eigen criterion agree with the verdicts, and with --fit boundary "
+                    "P(chatter) over the criterion's margin, a_p and rpm (logistic "
+                    "regression); write the fitted "
                     "values as an overlay the job reads with [calibration] overlay = \"FILE\", "
                     "and a fit-quality report FILE.report.json beside it. A fit the records "
                     "cannot support is refused with the reason.")

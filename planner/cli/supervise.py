@@ -108,8 +108,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_output(p, "--plot", kind="file", metavar="FILE.png",
                    help="plot the band against its limit, the override and (sim) the true chatter")
     add_output(p, "--records", kind="append", metavar="CUTS.jsonl",
-               help="append one cut record per section run, with the detector's verdict, for "
-                    "cctmill calibrate (docs/calibration.md); needs --tool")
+               help="append one cut record per section run, with the detector's verdict, the "
+                    "chatter frequency seen and (a force signal in known axes: --signal sim) "
+                    "the steady mean force, for cctmill calibrate (docs/calibration.md); needs "
+                    "--tool")
     p.add_argument("--tool", metavar="NAME", help="the tool data name the records give (a name of "
                                                   "cctmill tools, the one the plan was made with)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
