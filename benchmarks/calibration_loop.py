@@ -116,7 +116,8 @@ def _in_truth(truth: TruthCell, plan, tool: str, seed: int) -> dict:
     recs = run_cuts(truth, templates, seed=seed)
     chatter = [r for r in recs if r.verdict == "chatter"]
     return {"sections": len(recs), "chatter": len(chatter),
-            "chatter_sections": [r.source.get("section") for r in chatter], "records": recs}
+            "chatter_sections": [r.source.get("section") for r in chatter], "records": recs,
+            "templates": templates}
 
 
 def run(log=None) -> dict:
@@ -196,7 +197,7 @@ def _run(tmp: Path, log, t0: float) -> dict:
                                                 fz_min_mm=0.025), seed=2)
     co, st = fit_coefficients(ident, ctx.tool, ctx.material), fit_stiffness(ctx, ident)
     params = ctx.params(st.scale, co.values)
-    templates = section_templates(plan_of_result(plan_job(job)), tool)
+    templates = nominal["templates"]   # the nominal plan's sections, the passes' models
     top = ctx.tool.spindle_speed_max * 60.0 / (2.0 * math.pi)
     speeds = (job.spindle.rpm, top)
     boundary = run_cuts(truth, along_job_cuts(templates, START, AP_MM, seed=5, rpm=speeds), seed=3)
@@ -234,6 +235,7 @@ def _run(tmp: Path, log, t0: float) -> dict:
                              log)
     for r in rows + out["replan"].get("rows", []):
         r.pop("records", None)
+        r.pop("templates", None)
     out["time_s"] = time.perf_counter() - t0
     return out
 
@@ -269,7 +271,14 @@ def _way_out(tmp: Path, ident, boundary, cal, overlay: str, templates, speeds, t
     program = f"bracket_contour_{pick.levels}x.nc"
     (tmp / program).write_text(levels_program(pick.levels, pick.rpm), encoding="utf-8")
     new_job = _job_copy(tmp, "", None, f"_{pick.levels}x", program, pick.rpm)
-    new_templates = section_templates(plan_of_result(plan_job(load_job(new_job))), tool)
+    truth_overlay = "truth.overlay.toml"
+    true_new = _job_copy(tmp, "", truth_overlay, f"_{pick.levels}x", program, pick.rpm)
+    nominal_new = _plan_row(new_job, truth, tool, 8, log, f"{pick.levels} levels at {pick.rpm:g} "
+                            "rpm: nominal model", true_new)
+    if "refused" in nominal_new:
+        return {"suggestion": pick.as_json(), "decision_passes": len(decision),
+                "rows": [nominal_new]}
+    new_templates = nominal_new["templates"]
     fit = cal.boundary
     near = (max(AP_MM[0], 0.6 * pick.ap_mm), min(AP_MM[1], 1.4 * pick.ap_mm))
     confirm = run_cuts(truth, propose_along_job(cal_ctx, fit, new_templates, CONFIRM, near,
@@ -277,11 +286,8 @@ def _way_out(tmp: Path, ident, boundary, cal, overlay: str, templates, speeds, t
     log(f"confirming passes at {pick.rpm:g} rpm: "
         + ", ".join(f"{r.ap_mm:g} mm {r.verdict[0]}" for r in confirm))
     cal2, overlay2 = _calibrate(tmp, new_job, ident, boundary + decision + confirm, log, "_2")
-    truth_overlay = "truth.overlay.toml"
-    true_new = _job_copy(tmp, "", truth_overlay, f"_{pick.levels}x", program, pick.rpm)
     rows = [
-        _plan_row(new_job, truth, tool, 8, log, f"{pick.levels} levels at {pick.rpm:g} rpm: "
-                  "nominal model", true_new),
+        nominal_new,
         _plan_row(_job_copy(tmp, f"\nchatter_probability_max = {P_MAX:g}", overlay2,
                             f"_{pick.levels}x_pmax", program, pick.rpm), truth, tool, 9, log,
                   f"{pick.levels} levels at {pick.rpm:g} rpm: calibrated, P(chatter) <= "

@@ -45,6 +45,7 @@ __all__ = [
     "Limits",
     "PathModel",
     "engaged_samples",
+    "job_parameters",
     "model_parameters",
 ]
 
@@ -99,7 +100,15 @@ def _previous_engaged(index: np.ndarray) -> np.ndarray:
 
 def model_parameters(job: Job, prep: Prepared) -> ModelParameters:
     """The point-model parameters a job asks for (robot data, material, calibration knobs)."""
-    robot = prep.robot
+    return job_parameters(job, prep.robot)
+
+
+def job_parameters(job: Job, robot) -> ModelParameters:
+    """:func:`model_parameters` from the job and its loaded robot (no prepared path needed): the
+    robot data's joint stiffness × ``[cell] joint_stiffness_scale``, the job's cutting
+    coefficients (a calibration overlay's where it has one), ``[model] cct`` and
+    ``process_gain``, ``$TOOL``'s origin and the spindle (the robot data's where the job gives
+    none)."""
     spindle = job.spindle
     si = job.to_si()
     return ModelParameters(

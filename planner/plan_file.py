@@ -396,6 +396,27 @@ class Plan:
 
         return plan_of_result(result)
 
+    def model_coefficients(self) -> np.ndarray:
+        """The cutting coefficients k_tc … k_ae [N/m², N/m] the plan was made with: its job's
+        calibration (``model.coefficients``) where the plan records one, else the material
+        file's.
+
+        Raises:
+            DataFileError: a recorded ``model.coefficients`` that is not six finite numbers.
+        """
+        rec = (self.model or {}).get("coefficients")
+        if rec is None:
+            from models import load_material
+
+            return np.asarray(load_material(self.material).coefficients(), float)
+        try:
+            k = np.asarray(rec, float).reshape(-1)
+        except (TypeError, ValueError) as e:
+            raise DataFileError("plan.json", f"model.coefficients: {e}") from e
+        if k.shape != (6,) or not np.all(np.isfinite(k)):
+            raise DataFileError("plan.json", "model.coefficients must be six numbers k_tc .. k_ae")
+        return k
+
     # -- the file edge ------------------------------------------------------------------------
     def document(self) -> dict[str, Any]:
         """The plan.json document (without ``format``, ``version``, ``samples_file``)."""

@@ -240,9 +240,7 @@ def allowed_depth_and_speed(boundary: Boundary, p_max: float, margin: float, ap_
     estimate P(chatter) ≤ ``p_max`` (the logit is linear in both). None where the boundary does
     not fall that way (P(chatter) does not rise with a_p, or does not fall with the speed)."""
     target = math.log(p_max / (1.0 - p_max))
-    x = np.array([margin, ap_mm, rpm], float)
-    z = (x - boundary.mean) / boundary.scale
-    mu = boundary.intercept + float(boundary.coef @ z)
+    mu = float(boundary.logit(np.array([[margin, ap_mm, rpm]], float))[0][0])
     b_ap = boundary.coef[1] / boundary.scale[1]
     b_rpm = boundary.coef[2] / boundary.scale[2]
     depth = float(ap_mm + (target - mu) / b_ap) if b_ap > 0 else None

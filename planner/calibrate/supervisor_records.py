@@ -221,9 +221,9 @@ def model_force_direction(plan: Any) -> Callable[[CutRecord], np.ndarray | None]
     3-axis mean force of a simulated sensor: a simulated run's records carry the simulated
     magnitude along the model's direction.
     """
-    from models import cutting, load_material
+    from models import cutting
 
-    coefficients = load_material(plan.material).coefficients()
+    coefficients = plan.model_coefficients()   # a calibrated plan's, else the material file's
 
     def direction(rec: CutRecord) -> np.ndarray | None:
         if not rec.flutes or not rec.diameter_mm:

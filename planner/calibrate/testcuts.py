@@ -335,11 +335,14 @@ def propose_along_job(ctx: CalibrationContext, boundary, templates: Sequence[Cut
     speeds = [None] if rpm is None else list(np.linspace(rpm[0], rpm[1], rpm_grid))
     for t in list(templates)[::max(1, every)]:
         for d in depths:
+            margin = None     # the eigen and γ margins do not depend on the spindle speed
             for v in speeds:
                 rec = imitate_section(t, d, pass_mm, "candidate",
                                       "value of information along the job", v)
+                if margin is None or ctx.criterion == "floquet":
+                    margin = criterion_margin(ctx, rec, params)
                 candidates.append(rec)
-                features.append([criterion_margin(ctx, rec, params), rec.ap_mm, rec.rpm])
+                features.append([margin, rec.ap_mm, rec.rpm])
     return _voi_pick(boundary, candidates, features, n)
 
 

@@ -373,51 +373,39 @@ class DeflectionCompensator:
 
 
 def job_parameters(job, robot: Robot | None = None) -> ModelParameters:
-    """The model a job asks for, as the planner takes it (:func:`planner.ceilings.model_parameters`).
-
-    The robot data's joint stiffness [N·m/rad] times ``[cell] joint_stiffness_scale``, the cutting
-    coefficients of ``[calibration] k_tc … k_ae`` (a calibration overlay's, merged in by the job
-    loader; :meth:`planner.job.Job.material_coefficients`) or else the material file's,
-    ``[model] cct`` and ``process_gain``, ``$TOOL``'s origin as the TCP and the spindle's mass and
-    centre of mass (the robot data's where the job gives none).
+    """The model a job asks for, as the planner takes it (:func:`planner.ceilings.job_parameters`:
+    the joint stiffness × ``[cell] joint_stiffness_scale``, a calibration overlay's cutting
+    coefficients where the job has one, ...).
 
     Args:
         job: a validated :class:`planner.job.Job` (:func:`planner.job.load_job`).
         robot: the job's robot, when already loaded (default: loaded from ``[cell] robot``).
     """
     from models import load_robot
+    from planner.ceilings import job_parameters as planner_parameters
 
-    robot = robot if robot is not None else load_robot(job.cell.robot)
-    data, si = robot.data, job.to_si()
-    return ModelParameters(
-        joint_stiffness=data.joint_stiffness * job.cell.joint_stiffness_scale,
-        coefficients=job.material_coefficients(), cct=job.model.cct, process_gain=job.model.process_gain,
-        tcp=np.asarray(si.tcp, float), gamma_window=si.gamma_window,
-        spindle_mass=data.spindle_mass if job.spindle.mass_kg is None else job.spindle.mass_kg,
-        spindle_com=data.spindle_com if si.spindle_com is None else si.spindle_com)
+    return planner_parameters(job, robot if robot is not None else load_robot(job.cell.robot))
 
 
 def _plan_parameters(plan, robot: Robot) -> ModelParameters:
     """The model of a plan without its job: the robot data's joint stiffness and the material
     file's coefficients, each replaced by what the plan records of its job's calibration
-    (``model.joint_stiffness_scale``, ``model.coefficients`` [k_tc … k_ae], SI) where it does."""
-    from models import load_material
+    (``model.joint_stiffness_scale``, ``model.coefficients``: :meth:`Plan.model_coefficients`)."""
+    from models.errors import DataFileError
 
     rec = plan.model or {}
     try:
         scale = float(rec.get("joint_stiffness_scale", 1.0))
-        coeffs = rec.get("coefficients")
-        coeffs = np.asarray(load_material(plan.material).coefficients() if coeffs is None else coeffs,
-                            float).reshape(-1)
-    except (TypeError, ValueError) as e:
+        gain = float(rec.get("process_gain", 1.0))
+        coeffs = plan.model_coefficients()
+    except (TypeError, ValueError, DataFileError) as e:
         raise InputError("compensation", f"the plan's model record is malformed: {e}") from e
     if not (math.isfinite(scale) and scale > 0):
         raise InputError("compensation", f"the plan's joint_stiffness_scale {scale!r} is not positive")
-    if coeffs.shape != (6,) or not np.all(np.isfinite(coeffs)):
-        raise InputError("compensation", "the plan's model.coefficients must be six numbers k_tc .. k_ae")
     data = robot.data
     return ModelParameters(joint_stiffness=data.joint_stiffness * scale, coefficients=coeffs,
-                           cct=bool(rec.get("cct", True)), tcp=np.asarray(plan.tool_xyz, float),
+                           cct=bool(rec.get("cct", True)), process_gain=gain,
+                           tcp=np.asarray(plan.tool_xyz, float),
                            spindle_mass=data.spindle_mass, spindle_com=data.spindle_com)
 
 
