@@ -49,6 +49,7 @@ __all__ = [
     "available_tools",
     "average_force",
     "average_torque",
+    "coefficient_design_function",
     "cutting_stiffness",
     "edge_forces",
     "feed_per_tooth",
@@ -278,6 +279,22 @@ def average_force(
     st_x, st_y, st_z = _brackets(phi_st, c, k)
     scale = flutes * a_p / (8.0 * ca.pi)
     return ca.vertcat(scale * (ex_x - st_x), 4.0 * scale * (ex_y - st_y), scale * (ex_z - st_z))
+
+
+@cache
+def coefficient_design_function() -> ca.Function:
+    """Built once: (c, a_e, a_p, mode, N, R) -> ∂F̄/∂K, 3×6 (N/(N/m²) then N/(N/m)).
+
+    The tooth-period average force is linear in the six coefficients, F̄ = A K, and A is affine
+    in the feed per tooth c: the calibration's least squares and the planner's confidence bounds
+    (:mod:`planner.limit_confidence`) both use it.
+    """
+    c, a_e, a_p, mode, flutes, radius = _symbols("c", "a_e", "a_p", "mode", "flutes", "radius")
+    coeffs = ca.SX.sym("coeffs", 6)
+    force = average_force(c, a_e, a_p, mode, flutes, radius, coeffs)
+    return ca.Function("coefficient_design", [c, a_e, a_p, mode, flutes, radius],
+                       [ca.jacobian(force, coeffs)], ["c", "a_e", "a_p", "mode", "flutes", "radius"],
+                       ["design"])
 
 
 def average_torque(

@@ -36,7 +36,7 @@ _EXPORTS: dict[str, tuple[str, ...]] = {
     "planner.plan": ("PlanInfeasibleError", "PlanResult", "plan_job", "plan_of_result", "plan_prepared"),
     "planner.plan_file": ("Plan", "PlanFileError", "PlanSamples", "PlanSection", "load_plan"),
     "planner.prepare": ("Prepared", "prepare"),
-    "planner.report.html": ("ReportRenderError",),
+    "planner.report.browser": ("ReportRenderError",),
     "planner.supervisor.policy": ("Supervisor", "SupervisorConfig"),
     "planner.supervisor.session": ("SessionSummary", "run_session"),
     "planner.timing": ("TimingError",),

@@ -31,6 +31,7 @@ from models.cutting import MILLING_MODES
 from models.errors import InputError
 from planner._progress import bar
 from planner.job import Job
+from planner.limit_confidence import limit_confidence
 from planner.limits import Limits
 from planner.prepare import Prepared
 
@@ -147,6 +148,9 @@ class Evaluation:
         deflection_held: what the deflection tolerance held [m], (m,):
             :meth:`planner.limits.Limits.deflection_held` — ‖δ‖ uncompensated, u·‖δ‖ + the
             change compensated (empty from evaluations made without it).
+        confidence_factors: (1 + z u_F, 1 + z u_δ) per sample, what the force and the held
+            deflection were multiplied by before the limits (:mod:`planner.limit_confidence`),
+            (m, 2); empty when the job states no calibration uncertainty.
     """
 
     feed: np.ndarray
@@ -165,6 +169,7 @@ class Evaluation:
     slack: np.ndarray
     deflection_change: np.ndarray = field(default_factory=lambda: np.zeros(0))
     deflection_held: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    confidence_factors: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
     @property
     def all_ok(self) -> np.ndarray:
@@ -238,6 +243,9 @@ class PathModel:
             from planner.calibrate.fit_boundary import margin_floors
 
             self.margin_floor = margin_floors(job, e.a_p[i], self.spindle_speed)
+        #: the calibration's uncertainty bound on force and deflection (None: plan on the
+        #: model's values), :mod:`planner.limit_confidence`.
+        self.confidence = limit_confidence(job, self.cut, self.tooth_frequency)
         self.q = prep.kinematics.q[i].T
         #: per engaged sample, the engaged sample just before it on the path (−1: none), whose δ
         #: a compensated path cannot follow inside the LIN between them.
@@ -308,10 +316,16 @@ class PathModel:
         change = (self._deflection_change(defl, feeds, sel) if lim.compensate_deflection
                   else np.zeros(0))
         held = lim.deflection_held(dnorm, change)
-        ok = np.column_stack([chatter_ok, force <= lim.force_max, held <= lim.deflection_tol,
-                              power <= lim.power_max])
-        slack = np.column_stack([chatter_slack, force / lim.force_max - 1.0,
-                                 held / lim.deflection_tol - 1.0, power / lim.power_max - 1.0])
+        force_bound, held_bound = force, held
+        factors = np.zeros((0, 2))
+        if self.confidence is not None:
+            k_force, k_defl = self.confidence.factors(feeds, force_o.T, sel)
+            force_bound, held_bound = force * k_force, held * k_defl
+            factors = np.column_stack([k_force, k_defl])
+        ok = np.column_stack([chatter_ok, force_bound <= lim.force_max,
+                              held_bound <= lim.deflection_tol, power <= lim.power_max])
+        slack = np.column_stack([chatter_slack, force_bound / lim.force_max - 1.0,
+                                 held_bound / lim.deflection_tol - 1.0, power / lim.power_max - 1.0])
         if self.mass_model == "robot":
             freqs = np.sqrt(np.maximum(r["omega2"].reshape(2, n).T, 0.0)) / (2.0 * np.pi)
         else:
@@ -321,7 +335,7 @@ class PathModel:
             deflection_norm=dnorm, deflection_normal=np.einsum("ij,ij->i", defl, self.radial_dir[sel]),
             gamma=r["gamma"].reshape(n), margin=margin, gamma_margin=gamma_margin, stable=stable,
             power=power, natural_frequencies=freqs, ok=ok, slack=slack,
-            deflection_change=change, deflection_held=held)
+            deflection_change=change, deflection_held=held, confidence_factors=factors)
 
     def _deflection_change(self, defl: np.ndarray, feeds: np.ndarray,
                            sel: np.ndarray) -> np.ndarray:

@@ -110,7 +110,7 @@ def run_demo_job(out: Path) -> DemoResult:
     from planner.outputs import KrlOptions, write_plan_outputs
     from planner.plan import plan_prepared
     from planner.prepare import inspect_job, prepare
-    from planner.report.html import ReportRenderError, render_screenshot
+    from planner.report.browser import ReportRenderError, render_screenshot
     from planner.report.plots import plot_path_kinematics
     from planner.supervisor.metrics import episode_outcome_text, episode_timing_text
 

@@ -187,6 +187,13 @@ KEY_DOCS: dict[str, str] = {
     "kinematics.choose_for_stiffness": "pick the free rotation at the first sample for stiffness",
     "model.chatter_probability_max": "largest P(chatter) a section may have by the calibrated "
                                      "boundary (docs/calibration.md); none: not required",
+    "model.limit_confidence": "probability with which the force limit and the deflection "
+                              "tolerance hold under the calibration's parameter uncertainty "
+                              "(docs/calibration.md); 0.5: plan on the fitted values",
+    "calibration.coefficient_covariance": "covariance of the fitted k_tc .. k_ae, SI, 36 values "
+                                          "row by row",
+    "calibration.joint_stiffness_scale_std": "relative standard error of the fitted joint "
+                                             "stiffness scale [-]",
     "calibration.overlay": "overlay file from cctmill calibrate, relative to this file; its "
                            "[cell], [model], [calibration] keys replace these",
     "calibration.k_tc": "fitted tangential cutting coefficient [N/m²] (replaces the material's)",

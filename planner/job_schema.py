@@ -253,6 +253,7 @@ class ModelSection(_Section):
     process_gain: PosFloat = 1.0
     cct: bool = True
     chatter_probability_max: Annotated[float, Field(gt=0.0, lt=1.0, allow_inf_nan=False)] | None = None
+    limit_confidence: Annotated[float, Field(ge=0.5, lt=1.0, allow_inf_nan=False)] = 0.95
 
 
 class CalibrationSection(_Section):
@@ -272,6 +273,8 @@ class CalibrationSection(_Section):
     boundary_scale: Annotated[list[float], Field(min_length=3, max_length=3)] | None = None
     boundary_coef: Annotated[list[float], Field(min_length=3, max_length=3)] | None = None
     boundary_intercept: float | None = None
+    coefficient_covariance: Annotated[list[float], Field(min_length=36, max_length=36)] | None = None
+    joint_stiffness_scale_std: NonNegFloat | None = None
     records: list[str] = []
     fitted_utc: str | None = None
     report: str | None = None
@@ -282,6 +285,13 @@ class CalibrationSection(_Section):
                  if getattr(self, k) is not None]
         if given and len(given) != 6:
             raise ValueError("give all six cutting coefficients k_tc .. k_ae or none")
+        if self.coefficient_covariance is not None:
+            cov = np.asarray(self.coefficient_covariance, float).reshape(6, 6)
+            if not given:
+                raise ValueError("coefficient_covariance needs the six coefficients k_tc .. k_ae")
+            if not np.all(np.isfinite(cov)) or np.any(np.diag(cov) < 0.0):
+                raise ValueError("coefficient_covariance must be finite with a non-negative "
+                                 "diagonal (a covariance matrix, row by row)")
         return self
 
     def coefficients(self) -> np.ndarray | None:

@@ -246,6 +246,30 @@ def _worst_cell(xs: np.ndarray, lo: np.ndarray, hi: np.ndarray, edges: list[tupl
     return best[1], best[2], best[0]
 
 
+def _keep_change_bound(runs: list[list[int]], xs: np.ndarray, bound: float) -> list[list[int]]:
+    """Split merged runs where running them at their lowest cell's feed would break the feed
+    change bound to the next run (``xs`` and ``bound`` scaled): the cell at the offending boundary
+    that the merge lowered most goes back to its own feed. The solver's feeds meet the bound cell
+    by cell, so at worst every cell is its own section again."""
+    runs = [list(r) for r in runs]
+    while True:
+        feed = [float(np.min(xs[r])) for r in runs]
+        broken = [i for i in range(len(runs) - 1)
+                  if abs(feed[i + 1] - feed[i]) > bound * (1.0 + 1e-9)]
+        if not broken:
+            return runs
+        i = broken[0]
+        left, right = runs[i], runs[i + 1]
+        lowered_left = xs[left[-1]] - feed[i] if len(left) > 1 else -1.0
+        lowered_right = xs[right[0]] - feed[i + 1] if len(right) > 1 else -1.0
+        if max(lowered_left, lowered_right) <= 0.0:
+            return runs          # the solver's own feeds (within its tolerance): nothing to undo
+        if lowered_left >= lowered_right:
+            runs[i:i + 1] = [left[:-1], left[-1:]]
+        else:
+            runs[i + 1:i + 2] = [right[:1], right[1:]]
+
+
 def _merge(groups: list[list[tuple[int, int]]], xs: np.ndarray, f_ref: float,
            ceiling: np.ndarray, binding: np.ndarray,
            feed_change_max: float | None) -> list[Section]:
@@ -259,6 +283,8 @@ def _merge(groups: list[list[tuple[int, int]]], xs: np.ndarray, f_ref: float,
                 runs[-1].append(k + j)
             else:
                 runs.append([k + j])
+        if feed_change_max is not None:
+            runs = _keep_change_bound(runs, xs, feed_change_max / f_ref)
         for r in runs:
             a, b = g[r[0] - k][0], g[r[-1] - k][1]
             feed = float(np.min(xs[r])) * f_ref

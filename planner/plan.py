@@ -77,6 +77,7 @@ __all__ = [
     "PlanInfeasibleError",
     "PlanResult",
     "check_feasible",
+    "limit_confidence_summary",
     "plan_job",
     "plan_of_result",
     "plan_prepared",
@@ -567,4 +568,16 @@ def summary(res: PlanResult) -> dict[str, Any]:
         "feed_range_mm_s": [float(res.feed[res.kinds == CUT].min() * 1e3),
                             float(res.feed[res.kinds == CUT].max() * 1e3)] if ev.force.size else None,
         "constraints": list(CONSTRAINTS),
+        "limit_confidence": limit_confidence_summary(res),
     }
+
+
+def limit_confidence_summary(res: PlanResult) -> dict[str, float] | None:
+    """How the calibration's uncertainty tightened the force and deflection limits (None: the job
+    states none): the probability and the largest factors at the planned feeds
+    (:mod:`planner.limit_confidence`)."""
+    conf, k = res.model.confidence, res.evaluation.confidence_factors
+    if conf is None or k.size == 0:
+        return None
+    return {"probability": conf.probability, "z": conf.z,
+            "force_factor_max": float(k[:, 0].max()), "deflection_factor_max": float(k[:, 1].max())}

@@ -359,6 +359,12 @@ def test_calibrate_command_writes_an_overlay_the_job_reads(job_dir, ctx, planned
                                ctx.material.coefficients() * TRUE_FACTOR, rtol=1e-5)
     assert job.cell.tcp_mm == [320.0, 0.0, 0.0]            # the job's own keys stay
     assert job.calibration.records == [str((job_dir / "cuts.jsonl").resolve())]
+    # the fits' uncertainty travels with them: the planner bounds force and deflection with it
+    cov = np.asarray(job.calibration.coefficient_covariance).reshape(6, 6)
+    std = [report["coefficients"]["std"][n] for n in ("k_tc", "k_rc", "k_ac", "k_te", "k_re", "k_ae")]
+    np.testing.assert_allclose(np.sqrt(np.diag(cov)), std, rtol=1e-5)
+    assert job.calibration.joint_stiffness_scale_std == pytest.approx(
+        report["stiffness"]["scale_log_std"], rel=1e-3)
 
 
 def test_calibrate_command_reports_a_refused_fit_and_exits_2(job_dir, ctx, planned, capsys):

@@ -302,12 +302,9 @@ def test_ceiling_below_feed_min_is_a_cctmill_error_naming_the_cell():
         _solve(runs, ds, ceiling, feed_min=20e-3)
 
 
-@pytest.mark.xfail(raises=AssertionError, strict=True,
-                   reason="bug: merging joins neighbouring cells whose feeds differ by up to "
-                          "MERGE_TOL * feed_max and runs them at the lower one, so the next section's "
-                          "feed change can exceed feed_change_max by that much (1.003 vs 1 mm/s "
-                          "here), which planner.check reports as a feed_change violation")
 def test_merging_near_equal_cells_keeps_the_feed_change_bound():
+    """Cells 10.000 and 10.003 mm/s merge at the lower feed only where the next change stays
+    within feed_change_max: here the 10.003 cell keeps its own feed (was a 1.003 mm/s change)."""
     ds = _steps(31)
     cells = [[(0, 11), (11, 21), (21, 31)]]
     ceiling = np.concatenate([np.full(11, 10.000e-3), np.full(10, 10.003e-3), np.full(10, 40e-3)])

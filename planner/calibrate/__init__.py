@@ -23,7 +23,9 @@ __all__ = [
     "TestCutsResult",
     "TruthCell",
     "along_job_cuts",
+    "best_design",
     "calibrate",
+    "coefficient_bound",
     "fit_boundary",
     "fit_coefficients",
     "fit_process_gain",
@@ -57,6 +59,7 @@ _WHERE = {
     "CutSuggestion": "suggest", "ProcessGainFit": "fit_process", "along_job_cuts": "testcuts",
     "fit_process_gain": "fit_process", "propose_along_job": "testcuts",
     "section_templates": "testcuts", "suggest_levels_and_speed": "suggest",
+    "best_design": "design_bound", "coefficient_bound": "design_bound",
 }
 
 

@@ -19,9 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import cache
 
-import casadi as ca
 import numpy as np
 import scipy.optimize
 import scipy.stats
@@ -87,15 +85,6 @@ class FitRefused(CctmillError):
         self.what, self.reason = what, reason
 
 
-@cache
-def _design_function() -> ca.Function:
-    """(c, a_e, a_p, mode, N, R) -> ∂F̄/∂K (3×6): the mean force is linear in K."""
-    c, a_e, a_p, mode, n, r = (ca.SX.sym(s) for s in ("c", "a_e", "a_p", "mode", "n", "r"))
-    k = ca.SX.sym("k", 6)
-    force = cutting.average_force(c, a_e, a_p, mode, n, r, k)
-    return ca.Function("coefficient_design", [c, a_e, a_p, mode, n, r], [ca.jacobian(force, k)])
-
-
 def _engagement(record: CutRecord, tool: Tool) -> tuple[float, float, float, int, float]:
     """(c [m], a_e [m], a_p [m], mode code, radius [m]) of a record with the tool."""
     radius = tool.radius if record.diameter_mm is None else record.diameter_mm * 5e-4
@@ -110,7 +99,7 @@ def design_rows(record: CutRecord, tool: Tool) -> np.ndarray:
     :data:`COEFFICIENT_NAMES` order, N/(N/m²) then N/(N/m))."""
     c, a_e, a_p, mode, radius = _engagement(record, tool)
     flutes = tool.flutes if record.flutes is None else record.flutes
-    return np.asarray(_design_function()(c, a_e, a_p, mode, flutes, radius), float)
+    return np.asarray(cutting.coefficient_design_function()(c, a_e, a_p, mode, flutes, radius), float)
 
 
 @dataclass(frozen=True)

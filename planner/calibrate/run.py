@@ -182,6 +182,7 @@ def write_calibration(result: CalibrationResult, overlay: str | Path) -> tuple[P
         comments.append(f"joint_stiffness_scale: the job's {ctx.joint_stiffness_scale:g} x fitted "
                         f"{s.scale:.4g} (95 % CI {s.scale_ci[0]:.4g} .. {s.scale_ci[1]:.4g}, "
                         f"{s.method})")
+        cal["joint_stiffness_scale_std"] = float(f"{s.scale_log_std:.4g}")
         if any(s.resolved):
             comments.append("per joint (in the report; the job has one common scale): " + ", ".join(
                 f"A{i + 1} {v:.3g}" for i, v in enumerate(s.per_joint) if s.resolved[i]))
@@ -189,6 +190,8 @@ def write_calibration(result: CalibrationResult, overlay: str | Path) -> tuple[P
         c = result.coefficients
         for i, name in enumerate(COEFFICIENT_NAMES):
             cal[name] = float(f"{c.values[i]:.6g}")
+        cal["coefficient_covariance"] = [float(f"{v:.6g}") for v in
+                                         np.asarray(c.covariance, float).ravel()]
         comments.append(f"k_tc .. k_ae: {c.n_cuts} cuts, {c.n_feeds} feeds per tooth "
                         f"{c.feed_per_tooth_range[0] * 1e3:.3g} .. "
                         f"{c.feed_per_tooth_range[1] * 1e3:.3g} mm; 95 % CIs in the report")
@@ -280,7 +283,13 @@ def testcuts(job_file: str | Path, n: int, out_dir: str | Path,
         planned = identification_cuts(ctx, poses, n, rpm=rpm[1], ae_mm=(2 * ctx.tool.radius * 1e3,),
                                       ap_mm=(ap_mm[0], (ap_mm[0] + ap_mm[1]) / 2), milling="slot",
                                       feeds="ends")
-        how = "identification slots"
+        from planner.calibrate.design_bound import coefficient_bound
+
+        bound = coefficient_bound(planned, ctx.tool, ctx.material.coefficients())
+        how = ("identification slots; the fit's best 1σ at 0.5 N + 1 % force noise "
+               "(Cramér–Rao, docs/calibration.md): "
+               + ", ".join(f"{name} {100 * b:.1f} %" for name, b in zip(COEFFICIENT_NAMES, bound,
+                                                                      strict=True)))
     elif design == "along-job":
         planned, how = _along_job(job, ctx, n, records, ap_mm, seed, progress)
     else:

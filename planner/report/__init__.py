@@ -1,16 +1,14 @@
 """Reports of a plan: the self-contained HTML page and its figures (:mod:`~planner.report.html`),
 the toolpath in 3-D (:mod:`~planner.report.view3d`, plotly offline), the path and characteristic
-plots (:mod:`~planner.report.plots`) and the tables (:mod:`~planner.report.tables`)."""
+plots (:mod:`~planner.report.plots`), the tables (:mod:`~planner.report.tables`) and the headless
+browser that looks at the page (:mod:`~planner.report.browser`)."""
 
+from planner.report.browser import BROWSERS, ReportRenderError, find_browser, render_screenshot
 from planner.report.html import (
     BINDING_COLOURS,
-    BROWSERS,
-    ReportRenderError,
-    find_browser,
     headline,
     plot_along_path,
     plot_characteristics,
-    render_screenshot,
     tightest_sections,
     write_report,
 )

@@ -21,8 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from models.errors import CctmillError
-from planner._atomic import atomic_path, write_text_atomic
+from planner._atomic import write_text_atomic
 from planner._progress import MIN_TOTAL, bar
 from planner.display import quantity
 from planner.report.plots import new_figure, save_figure
@@ -30,13 +29,9 @@ from planner.sections import CUT
 
 __all__ = [
     "BINDING_COLOURS",
-    "BROWSERS",
-    "ReportRenderError",
-    "find_browser",
     "headline",
     "plot_along_path",
     "plot_characteristics",
-    "render_screenshot",
     "tightest_sections",
     "write_report",
 ]
@@ -47,10 +42,6 @@ BINDING_COLOURS = {
     "robot": "#1f77b4", "feed_max": "#2ca02c", "feed_change": "#7f7f7f",
     "cam_feed": "#17becf", "rapid": "#bcbd22", "tool": "#e377c2",
 }
-
-
-class ReportRenderError(CctmillError):
-    """The report could not be rendered to a screenshot (no browser, or it failed)."""
 
 
 #: Sections drawn each as its own colour band; with more, the bands are aggregated per bin.
@@ -380,9 +371,11 @@ def _frame(xyz_mm, abc_deg) -> str:
 def headline(res) -> dict[str, str]:
     """What was cut with what: rpm, tool, material, robot, $BASE and $TOOL (the report's first
     table)."""
+    from planner.plan import limit_confidence_summary
+
     prep = res.prep
     job, tool = prep.job, prep.tool
-    return {
+    out = {
         "robot": prep.robot.data.name,
         "$BASE (part in the robot base)": _frame(job.cell.base_mm, job.cell.base_abc_deg),
         "$TOOL (tool tip in the flange)": _frame(job.cell.tcp_mm, job.cell.tcp_abc_deg),
@@ -392,6 +385,14 @@ def headline(res) -> dict[str, str]:
         "material": job.material,
         "toolpath": ", ".join(Path(p).name for p in prep.path.files),
     }
+    conf = limit_confidence_summary(res)
+    if conf is not None:
+        out["calibration uncertainty"] = (
+            f"force and deflection limits held with probability {conf['probability']:g}: "
+            f"bounds up to +{100 * (conf['force_factor_max'] - 1):.1f} % (force), "
+            f"+{100 * (conf['deflection_factor_max'] - 1):.1f} % (deflection) over the fitted "
+            "model")
+    return out
 
 
 _CSS = """body{font-family:system-ui,sans-serif;margin:1.5em;max-width:1320px;color:#222}
@@ -544,56 +545,3 @@ the KRL program (<code>;FOLD section N</code>, <code>NAME_F00N</code>) and the s
     report = write_text_atomic(out / "report.html", doc)
     pbar.update()
     return {"report": report, "plot_along_path": along, "plot_characteristics": chars}
-
-
-#: Browsers tried for the headless screenshot, in order (Debian's package is ``chromium``).
-BROWSERS = ("chromium", "chromium-browser", "google-chrome")
-#: Flags for a headless, offline, throw-away browser (no network, no profile, no GPU).
-_BROWSER_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                  "--hide-scrollbars", "--force-device-scale-factor=1")
-#: Longest a screenshot may take [s].
-SCREENSHOT_TIMEOUT = 120.0
-#: Virtual time the page may take to settle before the screenshot [ms]: the 3-D view is drawn
-#: after plotly.js is unpacked, asynchronously (Chromium's ``--virtual-time-budget``).
-SCREENSHOT_SETTLE_MS = 20000
-
-
-def find_browser() -> str | None:
-    """Path of a headless-capable Chromium, or None."""
-    import shutil
-
-    for name in BROWSERS:
-        exe = shutil.which(name)
-        if exe:
-            return exe
-    return None
-
-
-def render_screenshot(html_path: str | os.PathLike, png_path: str | os.PathLike,
-                      width: int = 1240, height: int = 3600) -> Path:
-    """Render ``html_path`` in headless Chromium and save a PNG of the page (atomically).
-
-    Raises:
-        ReportRenderError: no browser, or the browser failed or wrote nothing.
-    """
-    import subprocess
-    import tempfile
-
-    exe = find_browser()
-    if exe is None:
-        raise ReportRenderError("no Chromium found to render the report (apt-get install chromium)")
-    page = Path(html_path).resolve().as_uri()
-    with tempfile.TemporaryDirectory(prefix="cctmill-browser-") as profile, \
-            atomic_path(png_path, suffix=".png") as tmp:
-        cmd = [exe, *_BROWSER_FLAGS, f"--user-data-dir={profile}", f"--window-size={width},{height}",
-               f"--virtual-time-budget={SCREENSHOT_SETTLE_MS}", f"--screenshot={tmp}", page]
-        try:
-            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=SCREENSHOT_TIMEOUT,
-                                  check=False)
-        except (OSError, subprocess.TimeoutExpired) as e:
-            raise ReportRenderError(f"{exe} could not render {html_path}: {e}") from e
-        if not tmp.exists() or tmp.stat().st_size == 0:
-            raise ReportRenderError(f"{exe} wrote no screenshot (exit {proc.returncode}): "
-                                    f"{proc.stderr.strip()[-300:]}")
-    return Path(png_path)
