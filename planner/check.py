@@ -7,7 +7,9 @@ checks) at the *planned* feed of that sample, and computes the spindle power by 
 instantaneous tangential edge force over the engaged arc numerically (not the closed form the
 planner uses); with the compensation-aware tolerance (``compensate_deflection``) it holds
 u·|δ| + |δ_k − δ_(k−1)| (:meth:`planner.limits.Limits.deflection_held`), recomputing δ of the
-previous sample at this sample's feed. A posture chosen along the path is measured from the joints
+previous sample at this sample's feed. Where the job's calibration states its uncertainty, force
+and deflection are held with the bound of :mod:`planner.limit_confidence`, as the planner holds
+them. A posture chosen along the path is measured from the joints
 (continuity, wrist, limits, rate; :func:`planner.posture.check_posture`). It then checks the
 plan's own bookkeeping: feeds inside the bounds, no cut faster
 than its programmed feed × ``cam_feed_scale_max`` and no air move faster than programmed or than
@@ -32,6 +34,7 @@ from models.cutting import edge_forces, immersion_angles
 from models.point import PointModel
 from planner.ceilings import model_parameters
 from planner.check_profile import dynamics_violations
+from planner.limit_confidence import limit_confidence
 from planner.limits import Limits
 from planner.prepare import Prepared
 from planner.sections import CUT, RAPID, kind_runs, step_lengths
@@ -134,10 +137,21 @@ def check_plan(prep: Prepared, feed: np.ndarray, kinds: np.ndarray, speed: np.nd
                    flutes=tool.flutes, radius=tool.radius)
 
     cut_samples = np.flatnonzero(kinds == CUT)
-    for k in cut_samples:
+    # the calibration's uncertainty bound, where the job states one (planner.limit_confidence)
+    rows = np.zeros((12, cut_samples.size))
+    rows[6:] = [e.a_e[cut_samples], e.a_p[cut_samples], e.mode[cut_samples].astype(float),
+                np.full(cut_samples.size, omega), np.full(cut_samples.size, float(tool.flutes)),
+                np.full(cut_samples.size, tool.radius)]
+    confidence = limit_confidence(job, rows, tool.flutes * job.spindle.rpm / 60.0)
+    for n, k in enumerate(cut_samples):
         cut = cut_at(k)
         a = model.analyze(prep.kinematics.q[k], cut, float(feed[k]))
-        add(k, "force", a.force, limits.force_max, a.force / limits.force_max)
+        k_force = k_defl = 1.0
+        if confidence is not None:
+            kf, kd = confidence.factors(np.array([float(feed[k])]),
+                                        np.asarray(a.force_o, float).reshape(1, 3), np.array([n]))
+            k_force, k_defl = float(kf[0]), float(kd[0])
+        add(k, "force", a.force * k_force, limits.force_max, a.force * k_force / limits.force_max)
         d = float(np.linalg.norm(a.deflection))
         change = 0.0
         if limits.compensate_deflection and k > 0 and kinds[k - 1] == CUT:
@@ -145,6 +159,7 @@ def check_plan(prep: Prepared, feed: np.ndarray, kinds: np.ndarray, speed: np.nd
             prev = model.analyze(prep.kinematics.q[k - 1], cut_at(k - 1), float(feed[k]))
             change = float(np.linalg.norm(np.asarray(a.deflection) - np.asarray(prev.deflection)))
         held = float(limits.deflection_held(d, change))
+        held *= k_defl
         add(k, "deflection", held, limits.deflection_tol, held / limits.deflection_tol)
         p = _power(cut, float(feed[k]), params.coefficients)
         add(k, "power", p, limits.power_max, p / limits.power_max)

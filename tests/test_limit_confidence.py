@@ -91,15 +91,7 @@ def test_a_calibrated_demo_plans_its_ceilings_on_the_bound(demo_prepared):
     and a 1.5 % stiffness scale: at every ceiling the bounded force and deflection meet their
     limits, where deflection binds the bound sits on the tolerance, the bounded plan is slower
     than the plan on the fitted values by about z·u, and the independent checker still passes."""
-    job = demo_prepared.job
-    rel = np.array([0.02, 0.02, 0.02, 0.08, 0.08, 0.08])
-    doc = job.model_dump()
-    doc["calibration"].update(dict(zip(("k_tc", "k_rc", "k_ac", "k_te", "k_re", "k_ae"),
-                                       map(float, job.material_coefficients()), strict=True)))
-    doc["calibration"]["coefficient_covariance"] = np.diag((rel * K) ** 2).ravel().tolist()
-    doc["calibration"]["joint_stiffness_scale_std"] = 0.015
-    cal_job = type(job).model_validate(doc)
-    bounded = PathModel(dataclasses.replace(demo_prepared, job=cal_job))
+    bounded = PathModel(_calibrated(demo_prepared))
     plain = PathModel(demo_prepared)
     assert bounded.confidence is not None and plain.confidence is None
     ceil, ceil0 = bounded.ceilings(), plain.ceilings()
@@ -118,6 +110,34 @@ def test_a_calibrated_demo_plans_its_ceilings_on_the_bound(demo_prepared):
     ev0 = plain.evaluate(ceil.feed)
     assert ev0.confidence_factors.size == 0
     np.testing.assert_allclose(ev0.force, ev.force)
+
+
+def _calibrated(prep):
+    """The prepared demo with its material's coefficients stated as a fit of 2 % (cutting) and
+    8 % (edge) standard error and a 1.5 % stiffness scale."""
+    job = prep.job
+    rel = np.array([0.02, 0.02, 0.02, 0.08, 0.08, 0.08])
+    doc = job.model_dump()
+    doc["calibration"].update(dict(zip(("k_tc", "k_rc", "k_ac", "k_te", "k_re", "k_ae"),
+                                       map(float, job.material_coefficients()), strict=True)))
+    doc["calibration"]["coefficient_covariance"] = np.diag((rel * K) ** 2).ravel().tolist()
+    doc["calibration"]["joint_stiffness_scale_std"] = 0.015
+    return dataclasses.replace(prep, job=type(job).model_validate(doc))
+
+
+def test_the_checker_holds_a_plan_to_the_bound(demo_prepared, demo_optimized):
+    """The independent checker applies the same bound: the plan made on the fitted values breaks
+    it where deflection binds, the plan made on the bound passes."""
+    from planner.check import check_result
+    from planner.plan import plan_prepared
+
+    cal = _calibrated(demo_prepared)
+    on_values = check_result(dataclasses.replace(demo_optimized, prep=cal))
+    assert not on_values.ok and {v.constraint for v in on_values.violations} >= {"deflection"}
+    assert on_values.worst_ratio["deflection"] > 1.02
+    assert check_result(demo_optimized).ok
+    bounded = check_result(plan_prepared(cal, "sections"))
+    assert bounded.ok and bounded.worst_ratio["deflection"] <= 1.0 + 1e-6
 
 
 def test_the_covariance_needs_the_coefficients_and_finite_values(demo_prepared):
