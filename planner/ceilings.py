@@ -245,7 +245,8 @@ class PathModel:
             self.margin_floor = margin_floors(job, e.a_p[i], self.spindle_speed)
         #: the calibration's uncertainty bound on force and deflection (None: plan on the
         #: model's values), :mod:`planner.limit_confidence`.
-        self.confidence = limit_confidence(job, self.cut, self.tooth_frequency)
+        self.confidence = limit_confidence(job, e.a_e[i], e.a_p[i], e.mode[i], tool.flutes,
+                                           tool.radius, self.tooth_frequency)
         self.q = prep.kinematics.q[i].T
         #: per engaged sample, the engaged sample just before it on the path (−1: none), whose δ
         #: a compensated path cannot follow inside the LIN between them.

@@ -138,11 +138,8 @@ def check_plan(prep: Prepared, feed: np.ndarray, kinds: np.ndarray, speed: np.nd
 
     cut_samples = np.flatnonzero(kinds == CUT)
     # the calibration's uncertainty bound, where the job states one (planner.limit_confidence)
-    rows = np.zeros((12, cut_samples.size))
-    rows[6:] = [e.a_e[cut_samples], e.a_p[cut_samples], e.mode[cut_samples].astype(float),
-                np.full(cut_samples.size, omega), np.full(cut_samples.size, float(tool.flutes)),
-                np.full(cut_samples.size, tool.radius)]
-    confidence = limit_confidence(job, rows, tool.flutes * job.spindle.rpm / 60.0)
+    confidence = limit_confidence(job, e.a_e[cut_samples], e.a_p[cut_samples], e.mode[cut_samples],
+                                  tool.flutes, tool.radius, tool.flutes * job.spindle.rpm / 60.0)
     for n, k in enumerate(cut_samples):
         cut = cut_at(k)
         a = model.analyze(prep.kinematics.q[k], cut, float(feed[k]))

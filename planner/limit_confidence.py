@@ -75,15 +75,17 @@ class LimitConfidence:
         return 1.0 + self.z * u_force, 1.0 + self.z * u_defl
 
 
-def limit_confidence(job, cut: np.ndarray, tooth_frequency: float) -> LimitConfidence | None:
+def limit_confidence(job, a_e: np.ndarray, a_p: np.ndarray, mode: np.ndarray, flutes: int,
+                     radius: float, tooth_frequency: float) -> LimitConfidence | None:
     """The bound for a job whose ``[calibration]`` carries a coefficient covariance or a stiffness
     scale's standard error, at ``[model] limit_confidence``; None without either (a nominal model
     states no uncertainty to bound) or at a confidence of 0.5.
 
     Args:
         job: the job.
-        cut: the path model's cut rows of the engaged samples (feed dir 3, radial dir 3, a_e,
-            a_p, mode, spindle speed, flutes, radius), (12, m).
+        a_e, a_p: radial and axial depth of cut of the engaged samples [m], (m,) each.
+        mode: their milling mode codes (:data:`models.cutting.MILLING_MODES`), (m,).
+        flutes, radius: the tool's [-] and [m].
         tooth_frequency: N · rpm / 60 [1/s].
     """
     cal = job.calibration
@@ -96,12 +98,13 @@ def limit_confidence(job, cut: np.ndarray, tooth_frequency: float) -> LimitConfi
     cov = (np.zeros((6, 6)) if cal.coefficient_covariance is None
            else np.asarray(cal.coefficient_covariance, float).reshape(6, 6))
     cov = 0.5 * (cov + cov.T)
-    m = cut.shape[1]
+    m = int(np.size(a_e))
     if m:
         f = coefficient_design_function().map(m)
-        a_e, a_p, mode, flutes, radius = cut[6], cut[7], cut[8], cut[10], cut[11]
-        d0 = np.asarray(f(np.zeros(m), a_e, a_p, mode, flutes, radius), float)
-        d1 = np.asarray(f(np.ones(m), a_e, a_p, mode, flutes, radius), float) - d0
+        args = (np.asarray(a_e, float), np.asarray(a_p, float), np.asarray(mode, float),
+                np.full(m, float(flutes)), np.full(m, float(radius)))
+        d0 = np.asarray(f(np.zeros(m), *args), float)
+        d1 = np.asarray(f(np.ones(m), *args), float) - d0
         # (3, 6 m), column blocks per sample -> (m, 3, 6)
         d0 = d0.reshape(3, m, 6).transpose(1, 0, 2)
         d1 = d1.reshape(3, m, 6).transpose(1, 0, 2)

@@ -254,20 +254,21 @@ def _keep_change_bound(runs: list[list[int]], xs: np.ndarray, bound: float) -> l
     runs = [list(r) for r in runs]
     while True:
         feed = [float(np.min(xs[r])) for r in runs]
-        broken = [i for i in range(len(runs) - 1)
-                  if abs(feed[i + 1] - feed[i]) > bound * (1.0 + 1e-9)]
-        if not broken:
-            return runs
-        i = broken[0]
-        left, right = runs[i], runs[i + 1]
-        lowered_left = xs[left[-1]] - feed[i] if len(left) > 1 else -1.0
-        lowered_right = xs[right[0]] - feed[i + 1] if len(right) > 1 else -1.0
-        if max(lowered_left, lowered_right) <= 0.0:
-            return runs          # the solver's own feeds (within its tolerance): nothing to undo
-        if lowered_left >= lowered_right:
-            runs[i:i + 1] = [left[:-1], left[-1:]]
+        for i in range(len(runs) - 1):
+            if abs(feed[i + 1] - feed[i]) <= bound * (1.0 + 1e-9):
+                continue
+            left, right = runs[i], runs[i + 1]
+            lowered_left = xs[left[-1]] - feed[i] if len(left) > 1 else -1.0
+            lowered_right = xs[right[0]] - feed[i + 1] if len(right) > 1 else -1.0
+            if max(lowered_left, lowered_right) <= 0.0:
+                continue     # the solver's own feeds (within its tolerance): nothing to undo
+            if lowered_left >= lowered_right:
+                runs[i:i + 1] = [left[:-1], left[-1:]]
+            else:
+                runs[i + 1:i + 2] = [right[:1], right[1:]]
+            break
         else:
-            runs[i + 1:i + 2] = [right[:1], right[1:]]
+            return runs
 
 
 def _merge(groups: list[list[tuple[int, int]]], xs: np.ndarray, f_ref: float,

@@ -78,6 +78,7 @@ __all__ = [
     "PlanResult",
     "check_feasible",
     "limit_confidence_summary",
+    "limit_confidence_text",
     "plan_job",
     "plan_of_result",
     "plan_prepared",
@@ -581,3 +582,13 @@ def limit_confidence_summary(res: PlanResult) -> dict[str, float] | None:
         return None
     return {"probability": conf.probability, "z": conf.z,
             "force_factor_max": float(k[:, 0].max()), "deflection_factor_max": float(k[:, 1].max())}
+
+
+def limit_confidence_text(res: PlanResult) -> str | None:
+    """:func:`limit_confidence_summary` as one sentence (the CLI and the report), or None."""
+    conf = limit_confidence_summary(res)
+    if conf is None:
+        return None
+    return (f"force and deflection limits held with probability {conf['probability']:g}: bounds up "
+            f"to +{100 * (conf['force_factor_max'] - 1):.1f} % (force), "
+            f"+{100 * (conf['deflection_factor_max'] - 1):.1f} % (deflection) over the fitted model")

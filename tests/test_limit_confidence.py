@@ -16,9 +16,11 @@ from planner.ceilings import PathModel
 from planner.limit_confidence import LimitConfidence, limit_confidence
 
 K = load_material("al6061").coefficients()
-#: (c [m], a_e [m], a_p [m], mode, flutes, radius [m]) of three unlike cuts.
-CUTS = [(0.05e-3, 3e-3, 10e-3, "down", 2, 12.7e-3), (0.2e-3, 12.7e-3, 4e-3, "up", 3, 10e-3),
+#: (c [m], a_e [m], a_p [m], mode, flutes, radius [m]) of three unlike cuts with one tool (a path
+#: has one), and one with another.
+CUTS = [(0.05e-3, 3e-3, 10e-3, "down", 2, 12.7e-3), (0.2e-3, 12.7e-3, 4e-3, "up", 2, 12.7e-3),
         (0.1e-3, 0.0, 2e-3, "slot", 2, 12.7e-3)]
+OTHER_TOOL = (0.2e-3, 10e-3, 4e-3, "up", 3, 10e-3)
 
 
 def _design(c, a_e, a_p, mode, n, r) -> np.ndarray:
@@ -26,15 +28,15 @@ def _design(c, a_e, a_p, mode, n, r) -> np.ndarray:
     return np.asarray(cutting.coefficient_design_function()(c, a_e, a_p, code, n, r), float)
 
 
-def _cut_rows(cuts) -> np.ndarray:
-    """The path model's cut rows (12, m) for ``cuts`` (directions and speed unused here)."""
-    rows = np.zeros((12, len(cuts)))
-    for k, (_, a_e, a_p, mode, n, r) in enumerate(cuts):
-        rows[6:, k] = a_e, a_p, cutting.MILLING_MODES[mode], 0.0, n, r
-    return rows
+def _engagement(cuts) -> tuple:
+    """(a_e, a_p, mode codes, flutes, radius) of ``cuts`` (one tool), as the path model passes
+    them to :func:`limit_confidence`."""
+    (_, _, _, _, n, r), = {(0, 0, 0, 0, c[4], c[5]) for c in cuts}
+    return (np.array([c[1] for c in cuts]), np.array([c[2] for c in cuts]),
+            np.array([cutting.MILLING_MODES[c[3]] for c in cuts]), n, r)
 
 
-@pytest.mark.parametrize("cut", CUTS)
+@pytest.mark.parametrize("cut", [*CUTS, OTHER_TOOL])
 def test_the_mean_force_is_affine_in_the_chip_and_linear_in_k(cut):
     c, *rest = cut
     a0, a1 = _design(0.0, *rest), _design(1.0, *rest) - _design(0.0, *rest)
@@ -55,7 +57,7 @@ def test_the_first_order_errors_match_a_monte_carlo_over_the_coefficients():
     cov = np.outer(rel * K, rel * K) * corr
     job = _Job(cov, 0.02, 0.95)
     tooth_f = 400.0
-    conf = limit_confidence(job, _cut_rows(CUTS), tooth_f)
+    conf = limit_confidence(job, *_engagement(CUTS), tooth_f)
     feeds = np.array([c[0] for c in CUTS]) * tooth_f
     force = np.array([_design(*c) @ K for c in CUTS])
     u_f, u_d = conf.relative_std(feeds, force, np.arange(len(CUTS)))
@@ -75,10 +77,10 @@ def test_the_first_order_errors_match_a_monte_carlo_over_the_coefficients():
 
 
 def test_no_bound_without_a_stated_uncertainty_or_at_even_odds():
-    rows = _cut_rows(CUTS)
-    assert limit_confidence(_Job(None, None, 0.95), rows, 400.0) is None
-    assert limit_confidence(_Job(np.eye(6), 0.02, 0.5), rows, 400.0) is None
-    only_stiffness = limit_confidence(_Job(None, 0.02, 0.95), rows, 400.0)
+    eng = _engagement(CUTS)
+    assert limit_confidence(_Job(None, None, 0.95), *eng, 400.0) is None
+    assert limit_confidence(_Job(np.eye(6), 0.02, 0.5), *eng, 400.0) is None
+    only_stiffness = limit_confidence(_Job(None, 0.02, 0.95), *eng, 400.0)
     assert isinstance(only_stiffness, LimitConfidence)
     force = np.array([_design(*c) @ K for c in CUTS])
     u_f, u_d = only_stiffness.relative_std(np.ones(3), force, np.arange(3))

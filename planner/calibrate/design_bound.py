@@ -20,7 +20,12 @@ from models.tooling import Tool
 from planner.calibrate.fit_coefficients import design_rows
 from planner.calibrate.records import CutRecord
 
-__all__ = ["best_design", "coefficient_bound", "information"]
+__all__ = ["FORCE_NOISE_N", "FORCE_NOISE_REL", "best_design", "coefficient_bound", "information"]
+
+#: The default force measurement error, σ = FORCE_NOISE_N [N] + FORCE_NOISE_REL × |F̄| per
+#: component: a dynamometer's floor, calibration and cross-talk over a pass (also the simulated
+#: truth's default, :class:`planner.calibrate.truth.TruthCell`).
+FORCE_NOISE_N, FORCE_NOISE_REL = 0.5, 0.01
 
 
 def information(records: Sequence[CutRecord], tool: Tool, coefficients: np.ndarray,
@@ -32,7 +37,8 @@ def information(records: Sequence[CutRecord], tool: Tool, coefficients: np.ndarr
 
 
 def coefficient_bound(records: Sequence[CutRecord], tool: Tool, coefficients: np.ndarray,
-                      force_noise_n: float = 0.5, force_noise_rel: float = 0.01) -> np.ndarray:
+                      force_noise_n: float = FORCE_NOISE_N,
+                      force_noise_rel: float = FORCE_NOISE_REL) -> np.ndarray:
     """The Cramér–Rao standard errors of K from ``records``, relative to ``coefficients``, (6,);
     ``inf`` where the passes cannot separate a coefficient (a singular information)."""
     return _relative(information(records, tool, coefficients, force_noise_n, force_noise_rel),
@@ -40,7 +46,8 @@ def coefficient_bound(records: Sequence[CutRecord], tool: Tool, coefficients: np
 
 
 def best_design(candidates: Sequence[CutRecord], n: int, tool: Tool, coefficients: np.ndarray,
-                force_noise_n: float = 0.5, force_noise_rel: float = 0.01, starts: int = 12,
+                force_noise_n: float = FORCE_NOISE_N, force_noise_rel: float = FORCE_NOISE_REL,
+                starts: int = 12,
                 seed: int = 0) -> tuple[list[int], np.ndarray]:
     """The ``n`` candidates (repeats allowed) whose worst relative Cramér–Rao error is smallest:
     (their indices, that bound (6,)). Exchange from ``starts`` random designs: replace one pass by

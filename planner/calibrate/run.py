@@ -283,10 +283,11 @@ def testcuts(job_file: str | Path, n: int, out_dir: str | Path,
         planned = identification_cuts(ctx, poses, n, rpm=rpm[1], ae_mm=(2 * ctx.tool.radius * 1e3,),
                                       ap_mm=(ap_mm[0], (ap_mm[0] + ap_mm[1]) / 2), milling="slot",
                                       feeds="ends")
-        from planner.calibrate.design_bound import coefficient_bound
+        from planner.calibrate.design_bound import FORCE_NOISE_N, FORCE_NOISE_REL, coefficient_bound
 
         bound = coefficient_bound(planned, ctx.tool, ctx.material.coefficients())
-        how = ("identification slots; the fit's best 1σ at 0.5 N + 1 % force noise "
+        how = (f"identification slots; the fit's best 1σ at {FORCE_NOISE_N:g} N + "
+               f"{100 * FORCE_NOISE_REL:g} % force noise "
                "(Cramér–Rao, docs/calibration.md): "
                + ", ".join(f"{name} {100 * b:.1f} %" for name, b in zip(COEFFICIENT_NAMES, bound,
                                                                       strict=True)))

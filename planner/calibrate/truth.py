@@ -34,6 +34,7 @@ from models.dynamics import simulate
 from models.errors import InputError
 from models.structure import DEFAULT_DAMPING_RATIO, pose_structure
 from planner.calibrate.context import CalibrationContext
+from planner.calibrate.design_bound import FORCE_NOISE_N, FORCE_NOISE_REL
 from planner.calibrate.fit_stiffness import joint_terms, record_cut
 from planner.calibrate.records import CutRecord
 
@@ -66,8 +67,8 @@ class TruthCell:
     coefficient_factor: float | tuple[float, ...] = 1.15
     process_gain: float = 1.3
     regeneration: bool = True
-    force_noise_n: float = 0.5
-    force_noise_rel: float = 0.01
+    force_noise_n: float = FORCE_NOISE_N
+    force_noise_rel: float = FORCE_NOISE_REL
     deflection_noise_mm: float = 0.015
     duration_s: float = 0.6
     fs_hz: float = 5000.0

@@ -11,7 +11,7 @@ from models.errors import InputError
 from planner.cli._common import add_output
 from planner.cli.export import krl_options
 from planner.demo import demo_job_file
-from planner.plan import METHODS, PlanResult, limit_confidence_summary
+from planner.plan import METHODS, PlanResult, limit_confidence_text
 
 __all__ = ["register", "section_table"]
 
@@ -95,12 +95,9 @@ def _cmd_plan(args: argparse.Namespace) -> int:
               f"{res.limits.section_length_min * 1e3:g} mm can cut faster than "
               f"{res.cut_time_bound:.2f} s under these limits "
               f"({100 * (res.cut_time / res.cut_time_bound - 1):.1f} % above it)")
-    conf = limit_confidence_summary(res)
+    conf = limit_confidence_text(res)
     if conf is not None:
-        print(f"calibration uncertainty: force and deflection limits held with probability "
-              f"{conf['probability']:g} (bounds up to {100 * (conf['force_factor_max'] - 1):.1f} % "
-              f"over the force, {100 * (conf['deflection_factor_max'] - 1):.1f} % over the "
-              "deflection the fitted model predicts)")
+        print(f"calibration uncertainty: {conf}")
     print("wrote:")
     for k, v in written.items():
         files = v if isinstance(v, list) else [v]

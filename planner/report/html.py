@@ -371,7 +371,7 @@ def _frame(xyz_mm, abc_deg) -> str:
 def headline(res) -> dict[str, str]:
     """What was cut with what: rpm, tool, material, robot, $BASE and $TOOL (the report's first
     table)."""
-    from planner.plan import limit_confidence_summary
+    from planner.plan import limit_confidence_text
 
     prep = res.prep
     job, tool = prep.job, prep.tool
@@ -385,13 +385,9 @@ def headline(res) -> dict[str, str]:
         "material": job.material,
         "toolpath": ", ".join(Path(p).name for p in prep.path.files),
     }
-    conf = limit_confidence_summary(res)
+    conf = limit_confidence_text(res)
     if conf is not None:
-        out["calibration uncertainty"] = (
-            f"force and deflection limits held with probability {conf['probability']:g}: "
-            f"bounds up to +{100 * (conf['force_factor_max'] - 1):.1f} % (force), "
-            f"+{100 * (conf['deflection_factor_max'] - 1):.1f} % (deflection) over the fitted "
-            "model")
+        out["calibration uncertainty"] = conf
     return out
 
 
